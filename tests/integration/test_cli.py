@@ -1,0 +1,81 @@
+"""The `unetyemu` command line, run as a user would run it (a subprocess)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+from ..conftest import REPO_ROOT, WORLDS
+
+
+def unetyemu(*args: str, cwd: Path = REPO_ROOT, timeout: float = 300) -> subprocess.CompletedProcess:
+    exe = shutil.which("unetyemu")
+    cmd = [exe] if exe else [sys.executable, "-m", "unetyemu_ecs.cli"]
+    return subprocess.run([*cmd, *args], cwd=cwd, capture_output=True, text=True, timeout=timeout)
+
+
+def test_run_urban_delivery_headless_prints_summary_and_writes_logs(tmp_path):
+    # WHEN the main scenario runs for 10 s as fast as possible
+    out = tmp_path / "run"
+    res = unetyemu("run", str(WORLDS / "urban_delivery.yaml"), "--duration", "10", "--rate", "max",
+                   "--out", str(out))
+    # THEN it succeeds and the summary names the time, the real-time factor and every vehicle
+    assert res.returncode == 0, res.stderr
+    assert "sim time 10.00 s" in res.stdout and "real-time factor" in res.stdout
+    for name in ("drone1", "drone2", "drone3", "car1", "car2", "car3", "truck1", "package1"):
+        assert name in res.stdout
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["steps"] == 2400 and summary["seed"] == 42
+    # AND every vehicle has a CSV log at 10 Hz: a row at t=0 and one per 0.1 s
+    for name in ("drone1", "truck1"):
+        with open(out / f"{name}.csv", newline="") as fh:
+            rows = list(csv.DictReader(fh))
+        assert len(rows) == 101
+        assert float(rows[-1]["time_s"]) == 10.0
+        # parked vehicles stay where they were put (they are resting on the ground)
+        assert abs(float(rows[-1]["z_m"]) - float(rows[0]["z_m"])) < 0.05
+
+
+def test_validate_accepts_the_shipped_worlds():
+    res = unetyemu("validate", *(str(p) for p in sorted(WORLDS.glob("*.yaml"))))
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.count(": OK") == len(list(WORLDS.glob("*.yaml")))
+
+
+def test_validate_on_a_broken_copy_prints_file_line_and_key_path_and_exits_2(tmp_path):
+    # GIVEN the delivery world with a negative package mass
+    text = (WORLDS / "urban_delivery.yaml").read_text()
+    broken = tmp_path / "broken.yaml"
+    broken.write_text(text.replace("mass_kg: 2.5", "mass_kg: -2.5"))
+    line = next(i for i, l in enumerate(broken.read_text().splitlines(), 1) if "mass_kg: -2.5" in l)
+    # WHEN validated
+    res = unetyemu("validate", str(broken))
+    # THEN the error names the file, the line and the key path, and the exit code is 2
+    assert res.returncode == 2
+    assert f"{broken}:{line}: packages[0].mass_kg: must be > 0, got -2.5" in res.stderr
+
+
+def test_run_refuses_a_bad_world_without_starting(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("world: {physics_hz: 0}\n")
+    res = unetyemu("run", str(bad), "--out", str(tmp_path / "out"))
+    assert res.returncode == 2
+    assert "world.physics_hz: must be > 0" in res.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_bad_cli_arguments_exit_2_with_a_reason(tmp_path):
+    res = unetyemu("run", str(WORLDS / "empty.yaml"), "--rate", "fast")
+    assert res.returncode == 2 and "expected a positive number or 'max'" in res.stderr
+    res = unetyemu("run", str(WORLDS / "empty.yaml"), "--duration", "-3")
+    assert res.returncode == 2 and "duration must be a positive" in res.stderr
+
+
+def test_plugins_lists_the_builtin_components():
+    res = unetyemu("plugins")
+    assert res.returncode == 0
+    assert "aero_drag" in res.stdout and "unetyemu_ecs.systems:" in res.stdout

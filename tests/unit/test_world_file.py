@@ -1,0 +1,129 @@
+"""World files are validated on load: every problem reported with file, line and key path."""
+
+from __future__ import annotations
+
+import pytest
+
+from unetyemu_ecs import ConfigError, load_world, load_world_text
+from unetyemu_ecs.plugins import Registry
+
+from ..conftest import WORLDS
+
+GOOD = """\
+world:
+  name: t
+  physics_hz: 240
+scene:
+  generator: none
+  pads:
+    - {name: home, position_m: [0, 0]}
+packages:
+  - name: p1
+    mass_kg: 1.0
+    pose: {pad: home, offset_m: [1, 0]}
+vehicles:
+  - name: d1
+    type: quadrotor
+    preset: small
+    pose: {pad: home}
+"""
+
+
+def _issues(text: str) -> list[str]:
+    with pytest.raises(ConfigError) as info:
+        load_world_text(text, "w.yaml", registry=Registry())
+    return [str(i) for i in info.value.issues]
+
+
+def test_shipped_worlds_are_valid():
+    for path in sorted(WORLDS.glob("*.yaml")):
+        world = load_world(path)
+        assert world.name
+
+
+def test_a_good_world_resolves_poses_on_pads():
+    world = load_world_text(GOOD, registry=Registry())
+    d1 = world.vehicles[0]
+    # the small drone's box (0.08 m half height) rests on the pad top
+    pad = world.layout.pads["home"]
+    assert d1.pos_enu_m[2] == pytest.approx(pad.center_enu_m[2] + 0.08, abs=0.01)
+    assert world.packages[0].pos_enu_m[0] == pytest.approx(pad.center_enu_m[0] + 1.0)
+
+
+def test_negative_mass_is_reported_with_line_and_key_path():
+    bad = GOOD.replace("mass_kg: 1.0", "mass_kg: -1.0")
+    assert _issues(bad) == ["w.yaml:10: packages[0].mass_kg: must be > 0, got -1.0"]
+
+
+def test_zero_physics_rate_is_reported():
+    assert _issues(GOOD.replace("physics_hz: 240", "physics_hz: 0")) == [
+        "w.yaml:3: world.physics_hz: must be > 0, got 0.0"]
+
+
+def test_unknown_key_lists_the_allowed_ones():
+    (msg,) = _issues(GOOD.replace("  physics_hz: 240", "  physics_hz: 240\n  gravty: 1"))
+    assert msg.startswith("w.yaml:4: world.gravty: unknown key 'gravty' (allowed: ")
+    assert "gravity_m_s2" in msg
+
+
+def test_wrong_type_is_reported():
+    (msg,) = _issues(GOOD.replace("physics_hz: 240", "physics_hz: fast"))
+    assert msg == "w.yaml:3: world.physics_hz: expected a number, got string 'fast'"
+
+
+def test_duplicate_vehicle_names_are_reported_at_the_second_one():
+    text = GOOD + "  - name: d1\n    type: car\n    pose: {position_m: [20, 0, 1]}\n"
+    (msg,) = _issues(text)
+    assert msg == "w.yaml:17: vehicles[1].name: duplicate name 'd1' (already used by vehicles[0] on line 13)"
+
+
+def test_unknown_pad_and_preset_are_reported_together():
+    text = GOOD.replace("preset: small", "preset: huge").replace("pose: {pad: home, offset", "pose: {pad: nowhere, offset")
+    issues = _issues(text)
+    assert any("vehicles[0].preset: unknown quadrotor preset 'huge' (expected one of: large, medium, small)" in i
+               for i in issues)
+    assert any(i.startswith("w.yaml:11: packages[0].pose.pad: unknown pad 'nowhere'") for i in issues)
+
+
+def test_duplicate_yaml_keys_are_errors_not_silently_overwritten():
+    (msg,) = _issues(GOOD.replace("  physics_hz: 240", "  physics_hz: 240\n  physics_hz: 100"))
+    assert msg == "w.yaml:4: world.physics_hz: duplicate key 'physics_hz' (first on line 3)"
+
+
+def test_yaml_syntax_error_names_the_line():
+    (msg,) = _issues(GOOD.replace("  name: t", "  name: [t"))
+    assert msg.startswith("w.yaml:") and "YAML syntax error" in msg
+
+
+def test_pose_needs_exactly_one_placement():
+    (msg,) = _issues(GOOD.replace("pose: {pad: home}", "pose: {pad: home, position_m: [0, 0, 1]}"))
+    assert msg.startswith("w.yaml:16: vehicles[0].pose: a pose needs exactly one of position_m, pad, parking")
+
+
+def test_unknown_component_lists_the_available_ones():
+    text = GOOD + "    components: {warp_drive: {}}\n"
+    (msg,) = _issues(text)
+    assert msg == "w.yaml:17: vehicles[0].components.warp_drive: unknown key 'warp_drive' (available: none installed)"
+
+
+def test_component_parameters_are_validated_against_the_component_dataclass():
+    text = GOOD + "    components:\n      aero_drag: {drag_coeff: -2, area_flu_m2: [0.1, 0.1]}\n"
+    issues = _issues_with_builtin(text)
+    assert "w.yaml:18: vehicles[0].components.aero_drag.drag_coeff: must be >= 0, got -2.0" in issues
+    assert "w.yaml:18: vehicles[0].components.aero_drag.area_flu_m2: expected list of 3 numbers, got 2 element(s)" in issues
+
+
+def _issues_with_builtin(text: str) -> list[str]:
+    with pytest.raises(ConfigError) as info:
+        load_world_text(text, "w.yaml", registry=Registry.discover())
+    return [str(i) for i in info.value.issues]
+
+
+def test_every_problem_of_a_file_is_reported_at_once():
+    text = GOOD.replace("physics_hz: 240", "physics_hz: -5").replace("mass_kg: 1.0", "mass_kg: zero")
+    assert len(_issues(text)) == 2
+
+
+def test_missing_file_is_a_config_error():
+    with pytest.raises(ConfigError, match="file not found"):
+        load_world("/nonexistent/world.yaml")

@@ -1,0 +1,267 @@
+"""Simulation: build a world from its definition, then step or run it; no physics or maths here."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import esper
+import numpy as np
+
+from .components.body import FleetSlot, Identity, RigidBody
+from .config.world_file import EntityDefinition, WorldDefinition, load_world
+from .fleet import FleetState
+from .frames import quat_xyzw_from_euler_rpy
+from .geodesy import GeodeticOrigin
+from .physics.bodies import create_box_body
+from .physics.client import PhysicsClient
+from .physics.static_scene import build_static_scene
+from .plugins import Registry
+from .systems.outputs import TrajectoryLogSystem
+from .systems.physics import PhysicsStepSystem
+from .systems.state import StateReadbackSystem
+from .world import EcsWorld, StepContext
+
+PACKAGE_RGBA = (0.80, 0.60, 0.30, 1.0)
+
+
+@dataclass(frozen=True)
+class RunStats:
+    """What one call to :meth:`Simulation.run` did."""
+
+    sim_time_s: float        # simulated time at the end of the run
+    sim_elapsed_s: float     # simulated time covered by this run
+    wall_time_s: float       # wall-clock time it took
+    steps: int               # physics steps taken by this run
+    interrupted: bool        # stopped by Ctrl-C or stop()
+
+    @property
+    def real_time_factor(self) -> float:
+        """Simulated seconds per wall-clock second."""
+        return self.sim_elapsed_s / self.wall_time_s if self.wall_time_s > 0 else float("inf")
+
+
+ProgressFn = Callable[[float, float, float], None]   # (sim_time_s, end_time_s, wall_elapsed_s)
+
+
+class Simulation:
+    """One simulated world: an esper world, a PyBullet client, the sim clock and the fleet arrays.
+
+    Parameters
+    ----------
+    world : a validated :class:`WorldDefinition` (see :func:`load_world`)
+    gui : open the PyBullet GUI instead of running headless
+    out_dir : where to write logs; ``None`` writes nothing
+    """
+
+    def __init__(self, world: WorldDefinition, *, gui: bool = False, out_dir: str | Path | None = None) -> None:
+        spec = world.spec.world
+        self.definition = world
+        self.dt_s = 1.0 / spec.physics_hz
+        self.seed = spec.seed
+        self.rng = np.random.default_rng(spec.seed)
+        self.fleet = FleetState()
+        self.step_count = 0
+        self.out_dir = Path(out_dir) if out_dir is not None else None
+        self._stop_requested = False
+        self._entities: dict[str, int] = {}
+        self._mesh = None
+        self._log: TrajectoryLogSystem | None = None
+        self.ecs = EcsWorld(label=world.name)
+        self.physics: PhysicsClient | None = None
+        try:
+            self.physics = PhysicsClient(self.dt_s, spec.gravity_m_s2, gui=gui)
+            self.static_body_ids = build_static_scene(self.physics.id, world.layout)
+            with self.ecs.active():
+                for ent in world.entities:
+                    self._spawn(ent)
+            self._add_systems(world)
+            self.physics.finish_loading()
+            with self.ecs.active():
+                self._state.prime(self._context())
+                if self._log is not None:
+                    self._log.write_rows(self._context(), 0.0)
+        except BaseException:
+            self.close()
+            raise
+
+    @classmethod
+    def from_file(cls, path: str | Path, *, seed: int | None = None, registry: Registry | None = None,
+                  **kwargs: Any) -> Simulation:
+        """Load, validate and build the world in ``path``."""
+        return cls(load_world(path, registry=registry, seed=seed), **kwargs)
+
+    # -- building ----------------------------------------------------------------------------
+    def _spawn(self, ent: EntityDefinition) -> None:
+        assert self.physics is not None
+        if ent.kind == "package":
+            half = np.asarray(ent.params["size_m"], dtype=float) / 2.0
+            rgba = PACKAGE_RGBA
+        else:
+            half = np.asarray(ent.params["body_half_extents_m"], dtype=float)
+            rgba = tuple(ent.params["rgba"])
+        mass = float(ent.params["mass_kg"])
+        quat = quat_xyzw_from_euler_rpy(0.0, 0.0, ent.yaw_rad)
+        body = create_box_body(self.physics.id, half, mass, ent.pos_enu_m, np.asarray(quat).ravel(), rgba)
+        eid = esper.create_entity()
+        row = self.fleet.allocate(eid, body)
+        esper.add_component(eid, Identity(name=ent.name, kind=ent.kind, preset=ent.preset, index=ent.index))
+        esper.add_component(eid, FleetSlot(row=row))
+        esper.add_component(eid, RigidBody(body_id=body, mass_kg=mass, half_extents_m=half))
+        for comp in ent.components.values():
+            esper.add_component(eid, comp)
+        self._entities[ent.name] = eid
+
+    def _add_systems(self, world: WorldDefinition) -> None:
+        self._state = StateReadbackSystem()
+        systems: list[Any] = [PhysicsStepSystem(), self._state]
+        classes: list[type] = []
+        for ent in world.entities:
+            for key in ent.components:
+                for cls in world.registry.component_entry(key).spec.systems:
+                    if cls not in classes:
+                        classes.append(cls)
+        systems += [cls() for cls in classes]
+        for key, cfg in world.systems.items():
+            systems.append(world.registry.system_entry(key).spec.system(cfg))
+        if self.out_dir is not None:
+            self.out_dir.mkdir(parents=True, exist_ok=True)
+            spec = world.spec.world
+            origin = GeodeticOrigin(spec.origin.lat_deg, spec.origin.lon_deg, spec.origin.alt_m)
+            self._log = TrajectoryLogSystem(self.out_dir, round(spec.physics_hz / spec.log_hz), origin)
+            systems.append(self._log)
+        for s in systems:
+            self.ecs.add_system(s)
+
+    # -- clock -------------------------------------------------------------------------------
+    @property
+    def sim_time_s(self) -> float:
+        """Simulated time now [s] (exact multiple of the physics step)."""
+        return self.step_count * self.dt_s
+
+    def _context(self) -> StepContext:
+        assert self.physics is not None
+        return StepContext(self.step_count, self.step_count * self.dt_s, self.dt_s, self.rng, self.fleet,
+                           self.physics)
+
+    def step(self, n: int = 1) -> None:
+        """Advance ``n`` physics steps, running every phase in order each step."""
+        with self.ecs.active():
+            for _ in range(int(n)):
+                self.ecs.process(self._context())
+                self.step_count += 1
+
+    def stop(self) -> None:
+        """Ask a running :meth:`run` to return after the current step (thread-safe)."""
+        self._stop_requested = True
+
+    def run(self, until: float | None = None, *, duration: float | None = None, rate: float | None = None,
+            progress: ProgressFn | None = None, progress_interval_s: float = 0.5) -> RunStats:
+        """Run until sim time ``until`` (or for ``duration`` seconds of sim time).
+
+        ``rate`` paces simulated time to ``rate`` x wall-clock time (1.0 = real time); ``None`` runs
+        as fast as possible. ``progress`` is called about every ``progress_interval_s`` of wall time.
+        Ctrl-C ends the run cleanly (``interrupted`` is set) and leaves the logs intact.
+        """
+        if (until is None) == (duration is None):
+            raise ValueError("give exactly one of until= or duration=")
+        end_s = until if until is not None else self.sim_time_s + float(duration)  # type: ignore[arg-type]
+        if rate is not None and not rate > 0:
+            raise ValueError(f"rate must be > 0 or None (as fast as possible), got {rate}")
+        end_step = int(round(end_s / self.dt_s))
+        start_step = self.step_count
+        self._stop_requested = False
+        wall0 = time.perf_counter()
+        next_report = wall0 + progress_interval_s
+        interrupted = False
+        try:
+            with self.ecs.active():
+                while self.step_count < end_step and not self._stop_requested:
+                    self.ecs.process(self._context())
+                    self.step_count += 1
+                    now = time.perf_counter()
+                    if rate is not None:
+                        ahead_s = wall0 + (self.step_count - start_step) * self.dt_s / rate - now
+                        if ahead_s > 0.001:
+                            time.sleep(ahead_s)
+                    if progress is not None and now >= next_report:
+                        progress(self.sim_time_s, end_step * self.dt_s, now - wall0)
+                        next_report = now + progress_interval_s
+        except KeyboardInterrupt:
+            interrupted = True
+        interrupted = interrupted or self._stop_requested
+        return RunStats(self.sim_time_s, (self.step_count - start_step) * self.dt_s, time.perf_counter() - wall0,
+                        self.step_count - start_step, interrupted)
+
+    # -- queries -----------------------------------------------------------------------------
+    @property
+    def vehicle_names(self) -> list[str]:
+        return [e.name for e in self.definition.vehicles]
+
+    @property
+    def package_names(self) -> list[str]:
+        return [e.name for e in self.definition.packages]
+
+    def entity(self, name: str) -> int:
+        """esper entity id of the vehicle or package ``name``."""
+        try:
+            return self._entities[name]
+        except KeyError:
+            raise KeyError(f"no vehicle or package named {name!r} (have: {', '.join(self._entities)})") from None
+
+    def row(self, name: str) -> int:
+        """Fleet row of ``name``."""
+        return self.fleet.row_of(self.entity(name))
+
+    def position_enu_m(self, name: str) -> np.ndarray:
+        """Centre of ``name`` in ENU [m], (3,) copy."""
+        return self.fleet.pos_enu_m[self.row(name)].copy()
+
+    def attitude_enu_flu_xyzw(self, name: str) -> np.ndarray:
+        """Attitude quaternion of ``name`` (body FLU in ENU), xyzw, (4,) copy."""
+        return self.fleet.quat_enu_flu_xyzw[self.row(name)].copy()
+
+    def velocity_enu_m_s(self, name: str) -> np.ndarray:
+        """Velocity of ``name`` in ENU [m/s], (3,) copy."""
+        return self.fleet.vel_enu_m_s[self.row(name)].copy()
+
+    def component(self, name: str, component_type: type) -> Any:
+        """The ``component_type`` component of entity ``name``."""
+        with self.ecs.active():
+            return esper.component_for_entity(self.entity(name), component_type)
+
+    @property
+    def layout(self):
+        """The scene layout (objects, pads, parking spots)."""
+        return self.definition.layout
+
+    @property
+    def scene_mesh(self):
+        """The static scene as one triangle mesh with per-triangle object ids and classes (cached)."""
+        if self._mesh is None:
+            from .scene.mesh import triangulate
+            self._mesh = triangulate(self.definition.layout)
+        return self._mesh
+
+    @property
+    def log_paths(self) -> dict[str, Path]:
+        """CSV log per vehicle name (empty without ``out_dir``)."""
+        return dict(self._log.paths) if self._log is not None else {}
+
+    # -- life cycle --------------------------------------------------------------------------
+    def close(self) -> None:
+        """Flush and close logs, disconnect PyBullet and delete the esper world; safe to call twice."""
+        if self._log is not None:
+            self._log.close()
+        if self.physics is not None:
+            self.physics.close()
+        self.ecs.close()
+
+    def __enter__(self) -> Simulation:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

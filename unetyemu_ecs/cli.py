@@ -1,0 +1,210 @@
+"""``unetyemu`` command line: run, validate, plugins.
+
+Exit codes: 0 success, 1 runtime failure, 2 bad input (arguments or world file), 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+from typing import TextIO
+
+EXIT_OK = 0
+EXIT_FAILURE = 1
+EXIT_BAD_INPUT = 2
+EXIT_INTERRUPTED = 130
+
+
+def _rate(text: str) -> float:
+    """Parse ``--rate``: a positive real-time multiple, or 'max' (returned as infinity)."""
+    if text.strip().lower() == "max":
+        return float("inf")
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number or 'max', got {text!r}") from None
+    if not value > 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"rate must be a positive finite number or 'max', got {text!r}")
+    return value
+
+
+def _positive_seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seconds as a number, got {text!r}") from None
+    if not 0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"duration must be a positive finite number of seconds, got {text!r}")
+    return value
+
+
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"seed must be a non-negative integer, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"seed must be a non-negative integer, got {text!r}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="unetyemu", description="Simulate drones and ground vehicles in urban worlds.")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    run = sub.add_parser("run", help="load a world file and run it")
+    run.add_argument("world", type=Path, help="world file (YAML), e.g. worlds/urban_delivery.yaml")
+    run.add_argument("--duration", type=_positive_seconds, default=None, metavar="S",
+                     help="simulated seconds to run (default: the world file's world.duration_s)")
+    run.add_argument("--rate", type=_rate, default=None, metavar="X|max",
+                     help="pace: X times real time, or 'max' for as fast as possible "
+                          "(default: 1 with --gui, max otherwise)")
+    run.add_argument("--seed", type=_seed, default=None, metavar="N", help="override the world file's seed")
+    run.add_argument("--gui", action="store_true", help="open the PyBullet window")
+    run.add_argument("--out", type=Path, default=None, metavar="DIR",
+                     help="output directory (default: runs/<world>-<date>-<time>)")
+    run.add_argument("--quiet", action="store_true", help="no progress display")
+
+    val = sub.add_parser("validate", help="check world files without running them")
+    val.add_argument("worlds", type=Path, nargs="+", metavar="WORLD")
+
+    sub.add_parser("plugins", help="list installed components, systems and sensors")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)  # exits 2 on bad arguments
+    try:
+        if args.command == "run":
+            return cmd_run(args)
+        if args.command == "validate":
+            return cmd_validate(args)
+        return cmd_plugins()
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+class _Progress:
+    """Progress for headless runs: a live line on a terminal, a line every 5 s otherwise."""
+
+    def __init__(self, stream: TextIO, delay_s: float = 2.0) -> None:
+        self.stream = stream
+        self.delay_s = delay_s
+        self.tty = stream.isatty()
+        self._last_line = 0.0
+        self._shown = False
+
+    def __call__(self, sim_s: float, end_s: float, wall_s: float) -> None:
+        if wall_s < self.delay_s:
+            return
+        frac = min(1.0, sim_s / end_s) if end_s > 0 else 1.0
+        rtf = sim_s / wall_s if wall_s > 0 else 0.0
+        eta = (end_s - sim_s) / rtf if rtf > 0 else float("inf")
+        bar = "#" * int(frac * 20)
+        line = f"[{bar:<20}] {100 * frac:5.1f}%  sim {sim_s:8.2f}/{end_s:.2f} s  RTF {rtf:6.2f}x  ETA {eta:6.1f} s"
+        if self.tty:
+            self.stream.write("\r" + line)
+            self.stream.flush()
+            self._shown = True
+        elif wall_s - self._last_line >= 5.0:
+            self.stream.write(line + "\n")
+            self.stream.flush()
+            self._last_line = wall_s
+
+    def done(self) -> None:
+        if self._shown:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from .app import Simulation
+    from .config.schema import ConfigError
+    from .config.world_file import load_world
+    from .physics.client import PhysicsError
+    from .summary import build_summary, format_summary, write_summary
+
+    try:
+        world = load_world(args.world, seed=args.seed)
+    except ConfigError as exc:
+        print(f"error: invalid world file:\n{exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if args.rate is None:
+        rate = 1.0 if args.gui else None
+    else:
+        rate = None if args.rate == float("inf") else args.rate
+    duration = args.duration if args.duration is not None else world.spec.world.duration_s
+    out = args.out or Path("runs") / f"{world.name}-{time.strftime('%Y%m%d-%H%M%S')}"
+    try:
+        sim = Simulation(world, gui=args.gui, out_dir=out)
+    except PhysicsError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_FAILURE
+    except OSError as exc:
+        print(f"error: cannot write outputs to {out}: {exc}", file=sys.stderr)
+        return EXIT_FAILURE
+    try:
+        progress = None if args.quiet else _Progress(sys.stderr)
+        stats = sim.run(duration=duration, rate=rate, progress=progress)
+        if progress is not None:
+            progress.done()
+        summary = build_summary(sim, stats)
+    finally:
+        sim.close()
+    path = write_summary(summary, out)
+    print(format_summary(summary))
+    print(f"outputs: {out} ({len(summary['logs'])} vehicle logs, {path.name})")
+    return EXIT_INTERRUPTED if stats.interrupted else EXIT_OK
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    from .config.schema import ConfigError
+    from .config.world_file import load_world
+    from .plugins import Registry
+
+    registry = Registry.discover()
+    status = EXIT_OK
+    for path in args.worlds:
+        try:
+            world = load_world(path, registry=registry)
+        except ConfigError as exc:
+            print(str(exc), file=sys.stderr)
+            print(f"{path}: INVALID ({len(exc.issues)} problem{'s' if len(exc.issues) != 1 else ''})",
+                  file=sys.stderr)
+            status = EXIT_BAD_INPUT
+            continue
+        print(f"{path}: OK ({len(world.vehicles)} vehicles, {len(world.packages)} packages, "
+              f"{len(world.layout.objects)} scene objects, {len(world.layout.pads)} pads)")
+    return status
+
+
+def cmd_plugins() -> int:
+    from .config.schema import describe_schema
+    from .plugins import GROUPS, Registry
+
+    reg = Registry.discover()
+    for group in GROUPS:
+        print(f"{group}:")
+        entries = reg.entries[group]
+        if not entries:
+            print("  (none)")
+        for key, entry in sorted(entries.items()):
+            spec = entry.spec
+            schema = getattr(spec, "component", None) or getattr(spec, "config", None)
+            summary = f" - {spec.summary}" if spec.summary else ""
+            print(f"  {key:<18} [{entry.provider}]{summary}")
+            for name, tname, default in describe_schema(schema):
+                print(f"      {name}: {tname} = {default}")
+    if reg.failures:
+        print("failed to load:")
+        for (group, key), why in sorted(reg.failures.items()):
+            print(f"  {group}:{key}: {why}")
+    return EXIT_OK
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Component dataclasses: parameters and identity of entities, no behaviour."""

@@ -1,0 +1,1 @@
+"""Pure vectorised laws (control and simple physics models): no esper, no PyBullet."""

@@ -1,0 +1,89 @@
+"""One PyBullet client per simulation: connection, stepping, batched state read-back and wrenches.
+
+PyBullet has no batched pose query, so ``read_states`` loops over bodies once per step (≈5 µs per
+body, see NOTES.md); everything else in the engine works on the resulting arrays.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pybullet as p
+
+
+class PhysicsError(RuntimeError):
+    """PyBullet could not do what was asked (no display for the GUI, bad body...)."""
+
+
+class PhysicsClient:
+    """A connected PyBullet client in DIRECT (default) or GUI mode, stepping at ``dt_s``."""
+
+    def __init__(self, dt_s: float, gravity_enu_m_s2: tuple[float, float, float], gui: bool = False) -> None:
+        mode = p.GUI if gui else p.DIRECT
+        cid = p.connect(mode)
+        if cid < 0:
+            raise PhysicsError("could not open the PyBullet GUI (is a display available? try without --gui)"
+                               if gui else "could not start a PyBullet DIRECT client")
+        self.id = cid
+        self.gui = gui
+        self.dt_s = float(dt_s)
+        p.resetSimulation(physicsClientId=cid)
+        p.setPhysicsEngineParameter(fixedTimeStep=self.dt_s, numSubSteps=0, deterministicOverlappingPairs=1,
+                                    physicsClientId=cid)
+        p.setGravity(*gravity_enu_m_s2, physicsClientId=cid)
+        if gui:
+            p.configureDebugVisualizer(p.COV_ENABLE_GUI, 0, physicsClientId=cid)
+            p.configureDebugVisualizer(p.COV_ENABLE_RENDERING, 0, physicsClientId=cid)
+
+    def finish_loading(self) -> None:
+        """Turn rendering back on after the scene was built (GUI only; faster loading)."""
+        if self.gui:
+            p.configureDebugVisualizer(p.COV_ENABLE_RENDERING, 1, physicsClientId=self.id)
+
+    def step(self) -> None:
+        """Advance the physics by one fixed step."""
+        p.stepSimulation(physicsClientId=self.id)
+
+    def read_states(self, body_ids: np.ndarray, pos_enu_m: np.ndarray, quat_xyzw: np.ndarray,
+                    vel_enu_m_s: np.ndarray, rate_enu_rad_s: np.ndarray) -> None:
+        """Fill the (M, 3)/(M, 4) output arrays with base pose and velocity of each body in ``body_ids``."""
+        cid = self.id
+        get_pose = p.getBasePositionAndOrientation
+        get_vel = p.getBaseVelocity
+        for k, bid in enumerate(body_ids.tolist()):
+            pos, quat = get_pose(bid, physicsClientId=cid)
+            lin, ang = get_vel(bid, physicsClientId=cid)
+            pos_enu_m[k] = pos
+            quat_xyzw[k] = quat
+            vel_enu_m_s[k] = lin
+            rate_enu_rad_s[k] = ang
+
+    def apply_wrenches(self, body_ids: np.ndarray, pos_enu_m: np.ndarray, force_enu_n: np.ndarray,
+                       torque_enu_n_m: np.ndarray) -> None:
+        """Apply a world-frame force at each body's centre of mass and a world-frame torque for one step."""
+        cid = self.id
+        force = p.applyExternalForce
+        torque = p.applyExternalTorque
+        for k, bid in enumerate(body_ids.tolist()):
+            f = force_enu_n[k]
+            if f[0] != 0.0 or f[1] != 0.0 or f[2] != 0.0:
+                force(bid, -1, f.tolist(), pos_enu_m[k].tolist(), p.WORLD_FRAME, physicsClientId=cid)
+            t = torque_enu_n_m[k]
+            if t[0] != 0.0 or t[1] != 0.0 or t[2] != 0.0:
+                torque(bid, -1, t.tolist(), p.WORLD_FRAME, physicsClientId=cid)
+
+    def contact_count(self, body_a: int, body_b: int | None = None) -> int:
+        """Number of contact points of ``body_a`` (with ``body_b`` if given) after the last step."""
+        if body_b is None:
+            return len(p.getContactPoints(bodyA=body_a, physicsClientId=self.id))
+        return len(p.getContactPoints(bodyA=body_a, bodyB=body_b, physicsClientId=self.id))
+
+    def remove_body(self, body_id: int) -> None:
+        p.removeBody(body_id, physicsClientId=self.id)
+
+    def close(self) -> None:
+        """Disconnect; safe to call twice."""
+        if self.id >= 0:
+            try:
+                p.disconnect(physicsClientId=self.id)
+            finally:
+                self.id = -1

@@ -1,0 +1,186 @@
+"""Plugin discovery through Python entry points, and the registry the world loader resolves against.
+
+Three entry-point groups (DESIGN.md §2):
+
+``unetyemu_ecs.components``
+    name = the world-file key under ``vehicles[i].components`` / ``packages[i].components``;
+    object = a :class:`ComponentPlugin` (the component dataclass, which is also its world-file schema,
+    and the systems that act on it).
+``unetyemu_ecs.systems``
+    name = the world-file key under the top-level ``systems:`` mapping; object = a
+    :class:`SystemPlugin` (a world-wide system and its configuration dataclass).
+``unetyemu_ecs.sensors``
+    name = the world-file key under ``components``; object = a :class:`SensorPlugin`.
+
+Built-in parts are declared in this project's own ``pyproject.toml`` and found the same way as
+third-party ones. A plugin that fails to import is not fatal: the registry records why, ``unetyemu
+plugins`` shows it, and a world file that uses it gets that reason as its error.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from importlib.metadata import EntryPoint, entry_points
+from typing import Any
+
+from .phases import Phase
+
+GROUP_COMPONENTS = "unetyemu_ecs.components"
+GROUP_SYSTEMS = "unetyemu_ecs.systems"
+GROUP_SENSORS = "unetyemu_ecs.sensors"
+GROUPS = (GROUP_COMPONENTS, GROUP_SYSTEMS, GROUP_SENSORS)
+
+ALL_KINDS = frozenset({"quadrotor", "car", "package"})
+
+
+def _check_system_class(cls: Any, what: str) -> None:
+    if not isinstance(cls, type) or not callable(getattr(cls, "process", None)):
+        raise TypeError(f"{what}: {cls!r} is not a system class with a process(ctx) method")
+    if not isinstance(getattr(cls, "phase", None), Phase):
+        raise TypeError(f"{what}: system {cls.__name__} must declare `phase` as a unetyemu_ecs.phases.Phase")
+
+
+@dataclass(frozen=True)
+class ComponentPlugin:
+    """A component that entities can carry, plus the systems that act on it.
+
+    ``component`` is a dataclass; its fields (with ``Annotated`` constraints) are the world-file
+    schema of the component's parameter block. Each class in ``systems`` is instantiated once per
+    simulation, with no arguments, when at least one entity carries the component.
+    """
+
+    component: type
+    systems: tuple[type, ...] = ()
+    applies_to: frozenset[str] = ALL_KINDS
+    summary: str = ""
+
+    def __post_init__(self) -> None:
+        if not dataclasses.is_dataclass(self.component):
+            raise TypeError(f"component {self.component!r} must be a dataclass")
+        for s in self.systems:
+            _check_system_class(s, f"component {self.component.__name__}")
+        unknown = set(self.applies_to) - ALL_KINDS
+        if unknown:
+            raise TypeError(f"applies_to has unknown kinds {sorted(unknown)}; known: {sorted(ALL_KINDS)}")
+
+
+@dataclass(frozen=True)
+class SystemPlugin:
+    """A world-wide system, enabled by its key in the world file's top-level ``systems:`` mapping.
+
+    ``system`` is instantiated once as ``system(config)`` where ``config`` is the ``config``
+    dataclass parsed from the world file.
+    """
+
+    system: type
+    config: type
+    summary: str = ""
+
+    def __post_init__(self) -> None:
+        _check_system_class(self.system, "system plugin")
+        if not dataclasses.is_dataclass(self.config):
+            raise TypeError(f"system {self.system.__name__}: config {self.config!r} must be a dataclass")
+
+
+@dataclass(frozen=True)
+class SensorPlugin:
+    """A sensor: its component (world-file schema) and the system that produces its measurements."""
+
+    component: type
+    system: type
+    applies_to: frozenset[str] = ALL_KINDS
+    summary: str = ""
+
+    def __post_init__(self) -> None:
+        if not dataclasses.is_dataclass(self.component):
+            raise TypeError(f"sensor component {self.component!r} must be a dataclass")
+        _check_system_class(self.system, f"sensor {self.component.__name__}")
+
+    @property
+    def systems(self) -> tuple[type, ...]:
+        return (self.system,)
+
+
+_EXPECTED = {GROUP_COMPONENTS: ComponentPlugin, GROUP_SYSTEMS: SystemPlugin, GROUP_SENSORS: SensorPlugin}
+
+
+@dataclass(frozen=True)
+class PluginEntry:
+    """One registered part: its key, group, spec and the distribution that provides it."""
+
+    key: str
+    group: str
+    spec: ComponentPlugin | SystemPlugin | SensorPlugin
+    provider: str
+
+
+@dataclass
+class Registry:
+    """Everything installed, by group and key; ``failures`` holds plugins that could not load."""
+
+    entries: dict[str, dict[str, PluginEntry]] = field(default_factory=lambda: {g: {} for g in GROUPS})
+    failures: dict[tuple[str, str], str] = field(default_factory=dict)
+
+    @classmethod
+    def discover(cls) -> Registry:
+        """Load every entry point of the three groups from the installed distributions."""
+        reg = cls()
+        for group in GROUPS:
+            for ep in sorted(entry_points(group=group), key=lambda e: e.name):
+                reg._load(ep, group)
+        return reg
+
+    def _load(self, ep: EntryPoint, group: str) -> None:
+        provider = ep.dist.name if ep.dist is not None else "?"
+        try:
+            spec = ep.load()
+            if callable(spec) and not isinstance(spec, _EXPECTED[group]):
+                spec = spec()  # a factory returning the spec
+            self.add(group, ep.name, spec, provider)
+        except Exception as exc:  # a broken plugin must not take the simulator down
+            self.failures[(group, ep.name)] = f"{provider}: {type(exc).__name__}: {exc}"
+
+    def add(self, group: str, key: str, spec: Any, provider: str = "<api>") -> None:
+        """Register ``spec`` under ``key`` in ``group`` (also used by tests and embedding code)."""
+        if group not in GROUPS:
+            raise ValueError(f"unknown plugin group {group!r}; expected one of {GROUPS}")
+        if not isinstance(spec, _EXPECTED[group]):
+            raise TypeError(f"entry point {key!r} in {group} must provide a {_EXPECTED[group].__name__}, "
+                            f"got {type(spec).__name__}")
+        if group != GROUP_SYSTEMS and key in self.component_keys() and key not in self.entries[group]:
+            other = self.component_entry(key)
+            raise ValueError(f"component key {key!r} is provided twice ({other.provider} and {provider})")
+        if key in self.entries[group]:
+            raise ValueError(f"{group} key {key!r} is provided twice "
+                             f"({self.entries[group][key].provider} and {provider})")
+        self.entries[group][key] = PluginEntry(key, group, spec, provider)
+
+    # -- lookup ----------------------------------------------------------------------------
+    def component_keys(self) -> list[str]:
+        """Keys usable under an entity's ``components`` (components and sensors), sorted."""
+        return sorted([*self.entries[GROUP_COMPONENTS], *self.entries[GROUP_SENSORS]])
+
+    def component_entry(self, key: str) -> PluginEntry:
+        """The component or sensor registered as ``key``; ``KeyError`` with a helpful message otherwise."""
+        for group in (GROUP_COMPONENTS, GROUP_SENSORS):
+            if key in self.entries[group]:
+                return self.entries[group][key]
+        raise KeyError(self._unknown(key, [GROUP_COMPONENTS, GROUP_SENSORS], self.component_keys()))
+
+    def system_entry(self, key: str) -> PluginEntry:
+        """The world system registered as ``key``; ``KeyError`` with a helpful message otherwise."""
+        if key in self.entries[GROUP_SYSTEMS]:
+            return self.entries[GROUP_SYSTEMS][key]
+        raise KeyError(self._unknown(key, [GROUP_SYSTEMS], sorted(self.entries[GROUP_SYSTEMS])))
+
+    def _unknown(self, key: str, groups: Iterable[str], available: list[str]) -> str:
+        for group in groups:
+            if (group, key) in self.failures:
+                return f"plugin {key!r} is installed but failed to load: {self.failures[(group, key)]}"
+        listed = ", ".join(available) if available else "none installed"
+        return f"unknown key {key!r} (available: {listed})"
+
+    def all_entries(self) -> list[PluginEntry]:
+        return [e for g in GROUPS for _, e in sorted(self.entries[g].items())]

@@ -1,0 +1,220 @@
+"""Static scene geometry as plain frozen data: shapes, objects, pads, parking spots and the layout.
+
+Everything is in the world ENU frame (x east, y north, z up), in metres and radians, with the ground
+surface at z = 0. A :class:`SceneLayout` is produced once (by the urban generator and/or explicit
+world-file objects) and consumed by the physics builder and the mesh triangulator.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import IntEnum
+
+import numpy as np
+
+PAD_THICKNESS_M = 0.1          # pads are boxes this thick; > 2 x Bullet's 0.04 m margin keeps them solid
+ROAD_TOP_Z_M = 0.002           # road surface: just above the ground so cameras and LiDAR can tell them apart
+ROAD_THICKNESS_M = 0.1
+GROUND_THICKNESS_M = 0.1
+
+
+class SceneClass(IntEnum):
+    """Semantic class of a scene object (stored per triangle as uint8)."""
+
+    GROUND = 0
+    ROAD = 1
+    SIDEWALK = 2
+    BUILDING = 3
+    TREE = 4
+    PAD = 5
+
+
+@dataclass(frozen=True)
+class Box:
+    """Box yawed about the world z axis.
+
+    Attributes
+    ----------
+    center_enu_m : (3,) float64 [m], ENU
+    half_extents_m : (3,) float64 [m], along the box's own x, y, z axes
+    yaw_rad : float [rad], rotation of the box axes about +z, counter-clockwise from east
+    """
+
+    center_enu_m: np.ndarray
+    half_extents_m: np.ndarray
+    yaw_rad: float = 0.0
+
+    @property
+    def top_z_m(self) -> float:
+        """Return the height of the top face [m]."""
+        return float(self.center_enu_m[2] + self.half_extents_m[2])
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """Upright cylinder (axis along world z).
+
+    Attributes
+    ----------
+    center_enu_m : (3,) float64 [m], ENU, centre of the axis
+    radius_m, half_height_m : float [m]
+    """
+
+    center_enu_m: np.ndarray
+    radius_m: float
+    half_height_m: float
+
+    @property
+    def top_z_m(self) -> float:
+        """Return the height of the top cap [m]."""
+        return float(self.center_enu_m[2] + self.half_height_m)
+
+
+@dataclass(frozen=True)
+class Sphere:
+    """Sphere.
+
+    Attributes
+    ----------
+    center_enu_m : (3,) float64 [m], ENU
+    radius_m : float [m]
+    """
+
+    center_enu_m: np.ndarray
+    radius_m: float
+
+
+Shape = Box | Cylinder | Sphere
+
+
+@dataclass(frozen=True)
+class SceneObject:
+    """One named static object made of one or more shapes; ``object_id`` is its index in the layout."""
+
+    object_id: int
+    name: str
+    cls: SceneClass
+    shapes: tuple[Shape, ...]
+
+
+@dataclass(frozen=True)
+class Pad:
+    """A landing pad.
+
+    Attributes
+    ----------
+    name : str
+    kind : str, 'start' or 'target'
+    center_enu_m : (3,) float64 [m], ENU, centre of the pad's TOP surface
+    size_m : float [m], edge of the square pad
+    object_id : int, id of the pad's :class:`SceneObject`
+    on_roof : bool, True when the pad rests on a building roof
+    """
+
+    name: str
+    kind: str
+    center_enu_m: np.ndarray
+    size_m: float
+    object_id: int
+    on_roof: bool
+
+
+@dataclass(frozen=True)
+class ParkingSpot:
+    """A parking spot on the road next to a curb.
+
+    Attributes
+    ----------
+    name : str
+    center_enu_m : (3,) float64 [m], ENU, on the road surface
+    yaw_rad : float [rad], heading along the street (right-hand traffic), counter-clockwise from east
+    """
+
+    name: str
+    center_enu_m: np.ndarray
+    yaw_rad: float
+
+
+@dataclass(frozen=True)
+class SceneLayout:
+    """All static objects of a world plus its pads and parking spots.
+
+    Attributes
+    ----------
+    objects : tuple of SceneObject, ``objects[i].object_id == i``; object 0 is the ground
+    pads : dict name -> Pad
+    parking : dict name -> ParkingSpot
+    extent_min_m, extent_max_m : (2,) float64 [m], ENU x/y bounds of the built area
+    """
+
+    objects: tuple[SceneObject, ...]
+    pads: dict[str, Pad]
+    parking: dict[str, ParkingSpot]
+    extent_min_m: np.ndarray
+    extent_max_m: np.ndarray
+    # Footprint tables for surface_height_m, derived once from ``objects``.
+    _footprints: tuple[np.ndarray, ...] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        for i, obj in enumerate(self.objects):
+            if obj.object_id != i:
+                raise ValueError(f"objects[{i}] has object_id {obj.object_id}; ids must equal positions")
+        box_rows, cyl_rows = [], []
+        for obj in self.objects:
+            for s in obj.shapes:
+                if isinstance(s, Box):
+                    box_rows.append((*s.center_enu_m, *s.half_extents_m, s.yaw_rad, obj.object_id))
+                elif isinstance(s, Cylinder):
+                    cyl_rows.append((*s.center_enu_m, s.radius_m, s.half_height_m, obj.object_id))
+        boxes = np.array(box_rows, dtype=np.float64).reshape(-1, 8)
+        cyls = np.array(cyl_rows, dtype=np.float64).reshape(-1, 6)
+        for a in (boxes, cyls):
+            a.flags.writeable = False
+        object.__setattr__(self, "_footprints", (boxes, cyls))
+
+    def support_at(self, x_m: float, y_m: float) -> tuple[float, int]:
+        """Return the top height [m] and object id of the highest box/cylinder covering (x, y).
+
+        Spheres (tree crowns) are not supports. Returns ``(0.0, 0)`` (the ground) when nothing covers
+        the point. Points exactly on a footprint's edge count as covered.
+        """
+        boxes, cyls = self._footprints
+        best_z, best_id = 0.0, 0
+        if boxes.shape[0]:
+            dx, dy = x_m - boxes[:, 0], y_m - boxes[:, 1]
+            c, s = np.cos(boxes[:, 6]), np.sin(boxes[:, 6])
+            lx, ly = c * dx + s * dy, -s * dx + c * dy         # point in each box's frame
+            eps = 1e-9
+            inside = (np.abs(lx) <= boxes[:, 3] + eps) & (np.abs(ly) <= boxes[:, 4] + eps)
+            top = np.where(inside, boxes[:, 2] + boxes[:, 5], -np.inf)
+            k = int(np.argmax(top))
+            if top[k] > best_z:
+                best_z, best_id = float(top[k]), int(boxes[k, 7])
+        if cyls.shape[0]:
+            inside = np.hypot(x_m - cyls[:, 0], y_m - cyls[:, 1]) <= cyls[:, 3]
+            top = np.where(inside, cyls[:, 2] + cyls[:, 4], -np.inf)
+            k = int(np.argmax(top))
+            if top[k] > best_z:
+                best_z, best_id = float(top[k]), int(cyls[k, 5])
+        return best_z, best_id
+
+    def surface_height_m(self, x_m: float, y_m: float) -> float:
+        """Return the top z [m] of the highest box/cylinder footprint covering (x, y); 0.0 for ground."""
+        return self.support_at(x_m, y_m)[0]
+
+
+__all__ = [
+    "GROUND_THICKNESS_M",
+    "PAD_THICKNESS_M",
+    "ROAD_THICKNESS_M",
+    "ROAD_TOP_Z_M",
+    "Box",
+    "Cylinder",
+    "Pad",
+    "ParkingSpot",
+    "SceneClass",
+    "SceneLayout",
+    "SceneObject",
+    "Shape",
+    "Sphere",
+]

@@ -1,0 +1,69 @@
+"""The run summary: what ran, how fast, and where every vehicle and package ended up."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .app import RunStats, Simulation
+
+
+def build_summary(sim: Simulation, stats: RunStats) -> dict[str, Any]:
+    """Return a JSON-ready summary of ``sim`` after a run described by ``stats``."""
+    d = sim.definition
+    entities = []
+    for ent in d.entities:
+        row = sim.row(ent.name)
+        entities.append({
+            "name": ent.name,
+            "kind": ent.kind,
+            "preset": ent.preset,
+            "start_enu_m": [round(float(x), 3) for x in ent.pos_enu_m],
+            "final_enu_m": [round(float(x), 3) for x in sim.fleet.pos_enu_m[row]],
+            "distance_m": round(float(sim.fleet.odometer_m[row]), 3),
+        })
+    return {
+        "world": d.name,
+        "world_file": d.file,
+        "seed": sim.seed,
+        "physics_hz": d.spec.world.physics_hz,
+        "steps": sim.step_count,
+        "sim_time_s": round(stats.sim_time_s, 6),
+        "wall_time_s": round(stats.wall_time_s, 3),
+        "real_time_factor": round(stats.real_time_factor, 3),
+        "interrupted": stats.interrupted,
+        "entities": entities,
+        "logs": {name: str(p) for name, p in sim.log_paths.items()},
+    }
+
+
+def format_summary(summary: dict[str, Any]) -> str:
+    """Render a summary as a short terminal report."""
+    ents = summary["entities"]
+    counts: dict[str, int] = {}
+    for e in ents:
+        counts[e["kind"]] = counts.get(e["kind"], 0) + 1
+    fleet = ", ".join(f"{n} {k}{'s' if n != 1 else ''}" for k, n in counts.items()) or "no vehicles"
+    lines = [
+        f"world {summary['world']} (seed {summary['seed']}): {fleet}",
+        f"sim time {summary['sim_time_s']:.2f} s | wall {summary['wall_time_s']:.2f} s | "
+        f"real-time factor {summary['real_time_factor']:.2f}x | {summary['steps']} steps at "
+        f"{summary['physics_hz']:g} Hz" + (" | INTERRUPTED" if summary["interrupted"] else ""),
+    ]
+    if ents:
+        w = max(len("name"), *(len(e["name"]) for e in ents))
+        lines.append(f"  {'name':<{w}}  {'kind':<9}  {'preset':<7}  {'distance_m':>10}  final ENU [m]")
+        for e in ents:
+            x, y, z = e["final_enu_m"]
+            lines.append(f"  {e['name']:<{w}}  {e['kind']:<9}  {e['preset'] or '-':<7}  "
+                         f"{e['distance_m']:>10.2f}  ({x:.2f}, {y:.2f}, {z:.2f})")
+    return "\n".join(lines)
+
+
+def write_summary(summary: dict[str, Any], out_dir: Path) -> Path:
+    """Write ``summary.json`` under ``out_dir`` and return its path."""
+    path = Path(out_dir) / "summary.json"
+    path.write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+    return path

@@ -1,0 +1,1 @@
+"""esper processors, one module per phase; each declares ``phase`` (and ``order`` within it)."""

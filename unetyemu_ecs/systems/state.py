@@ -1,0 +1,61 @@
+"""STATE phase: read every body's pose and velocity back from PyBullet into the fleet arrays, once."""
+
+from __future__ import annotations
+
+import esper
+import numpy as np
+
+from ..frames import R_from_quat_xyzw
+from ..phases import Phase
+from ..world import StepContext
+
+
+class StateReadbackSystem(esper.Processor):
+    """Copy base pose/velocity of all active rows from PyBullet; derive body rates and acceleration.
+
+    Phase: STATE. Reads: PyBullet. Writes: fleet.pos_enu_m, quat_enu_flu_xyzw, vel_enu_m_s,
+    rate_enu_rad_s, rate_flu_rad_s, acc_enu_m_s2 (velocity difference over the step), odometer_m.
+    """
+
+    phase = Phase.STATE
+    order = 0
+
+    def __init__(self) -> None:
+        self._seen_version = -1
+        self._rows = np.empty(0, dtype=np.intp)
+        self._bodies = np.empty(0, dtype=np.int64)
+
+    def prime(self, ctx: StepContext) -> None:
+        """Read the initial state (before the first step) so that phases before STATE see real poses."""
+        self._read(ctx, first=True)
+
+    def process(self, ctx: StepContext) -> None:
+        self._read(ctx, first=False)
+
+    def _read(self, ctx: StepContext, first: bool) -> None:
+        f = ctx.fleet
+        if f.version != self._seen_version:
+            self._rows = f.rows.copy()
+            self._bodies = f.body_id[self._rows].copy()
+            self._seen_version = f.version
+            first = True
+        r = self._rows
+        m = r.size
+        if m == 0:
+            return
+        pos = np.empty((m, 3))
+        quat = np.empty((m, 4))
+        vel = np.empty((m, 3))
+        rate = np.empty((m, 3))
+        ctx.physics.read_states(self._bodies, pos, quat, vel, rate)
+        if first:
+            f.acc_enu_m_s2[r] = 0.0
+        else:
+            f.acc_enu_m_s2[r] = (vel - f.vel_enu_m_s[r]) / ctx.dt_s
+            f.odometer_m[r] += np.linalg.norm(pos - f.pos_enu_m[r], axis=1)
+        f.pos_enu_m[r] = pos
+        f.quat_enu_flu_xyzw[r] = quat
+        f.vel_enu_m_s[r] = vel
+        f.rate_enu_rad_s[r] = rate
+        R_enu_flu = R_from_quat_xyzw(quat)                     # (M, 3, 3)
+        f.rate_flu_rad_s[r] = np.einsum("mji,mj->mi", R_enu_flu, rate)   # R^T @ w_enu

@@ -1,0 +1,1 @@
+"""Vehicle factories and their parameter files."""

@@ -1,0 +1,107 @@
+"""The esper world of one simulation, and the context every system receives each step.
+
+esper keeps its worlds in module-level state and switches between them by name. This module is the
+only caller of ``esper.switch_world`` and ``esper.delete_world``: every simulation owns one uniquely
+named world and activates it for exactly as long as its systems or API calls touch entities, so two
+simulations in one process never see each other's entities or processors.
+"""
+
+from __future__ import annotations
+
+import uuid
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import esper
+import numpy as np
+
+from .phases import Phase, priority
+
+if TYPE_CHECKING:
+    from .fleet import FleetState
+    from .physics.client import PhysicsClient
+
+
+@dataclass(frozen=True, slots=True)
+class StepContext:
+    """Everything a system may use during one physics step; the only argument of ``process``.
+
+    Attributes
+    ----------
+    step : index of the step being computed (0 for the first)
+    sim_time_s : simulated time at the start of this step [s]
+    dt_s : physics step [s]
+    rng : the simulation's seeded random generator (never the global ``np.random``)
+    fleet : hot per-body arrays
+    physics : the PyBullet client wrapper (only PHYSICS/PAYLOAD systems change it)
+    """
+
+    step: int
+    sim_time_s: float
+    dt_s: float
+    rng: np.random.Generator
+    fleet: FleetState
+    physics: PhysicsClient
+
+
+class EcsWorld:
+    """One named esper world plus its ordered systems."""
+
+    def __init__(self, label: str = "sim") -> None:
+        self.name = f"unetyemu-{label}-{uuid.uuid4().hex[:12]}"
+        self._closed = False
+        self._systems: list[tuple[int, Any]] = []
+        prev = esper.current_world
+        esper.switch_world(self.name)  # creates it
+        esper.switch_world(prev)
+
+    @contextmanager
+    def active(self) -> Iterator[None]:
+        """Make this world esper's current one for the duration of the block."""
+        if self._closed:
+            raise RuntimeError(f"esper world {self.name} is closed")
+        prev = esper.current_world
+        if prev == self.name:
+            yield
+            return
+        esper.switch_world(self.name)
+        try:
+            yield
+        finally:
+            esper.switch_world(prev)
+
+    def add_system(self, system: Any) -> None:
+        """Add ``system`` at the priority given by its ``phase`` and ``order`` attributes.
+
+        Only one instance per system class is allowed (esper keys processors by type).
+        """
+        phase = getattr(system, "phase", None)
+        if not isinstance(phase, Phase):
+            raise ValueError(f"system {type(system).__name__} must declare a `phase` (a Phase member)")
+        if any(type(s) is type(system) for _, s in self._systems):
+            raise ValueError(f"a {type(system).__name__} is already in this world")
+        prio = priority(phase, int(getattr(system, "order", 0)))
+        with self.active():
+            esper.add_processor(system, priority=prio)
+        self._systems.append((prio, system))
+        self._systems.sort(key=lambda ps: -ps[0])
+
+    @property
+    def systems(self) -> list[Any]:
+        """Systems in the order they run."""
+        return [s for _, s in self._systems]
+
+    def process(self, ctx: StepContext) -> None:
+        """Run every system once, in phase order (the world must be active)."""
+        esper.process(ctx)
+
+    def close(self) -> None:
+        """Delete the esper world; further use raises."""
+        if self._closed:
+            return
+        if esper.current_world == self.name:
+            esper.switch_world("default")
+        esper.delete_world(self.name)
+        self._closed = True
