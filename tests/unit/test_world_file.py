@@ -77,12 +77,16 @@ def test_duplicate_vehicle_names_are_reported_at_the_second_one():
     assert msg == "w.yaml:17: vehicles[1].name: duplicate name 'd1' (already used by vehicles[0] on line 13)"
 
 
-def test_unknown_pad_and_preset_are_reported_together():
-    text = GOOD.replace("preset: small", "preset: huge").replace("pose: {pad: home, offset", "pose: {pad: nowhere, offset")
-    issues = _issues(text)
-    assert any("vehicles[0].preset: unknown quadrotor preset 'huge' (expected one of: large, medium, small)" in i
-               for i in issues)
-    assert any(i.startswith("w.yaml:11: packages[0].pose.pad: unknown pad 'nowhere'") for i in issues)
+def test_unknown_preset_and_bad_rate_are_reported_together():
+    text = GOOD.replace("preset: small", "preset: huge").replace("physics_hz: 240", "physics_hz: -1")
+    assert _issues(text) == [
+        "w.yaml:3: world.physics_hz: must be > 0, got -1.0",
+        "w.yaml:15: vehicles[0].preset: unknown quadrotor preset 'huge' (expected one of: large, medium, small)"]
+
+
+def test_unknown_pad_is_reported_with_the_pads_that_exist():
+    (msg,) = _issues(GOOD.replace("pose: {pad: home, offset", "pose: {pad: nowhere, offset"))
+    assert msg == "w.yaml:11: packages[0].pose.pad: unknown pad 'nowhere' (pads in this scene: home)"
 
 
 def test_duplicate_yaml_keys_are_errors_not_silently_overwritten():

@@ -123,6 +123,14 @@ class Issue:
         return f"{where}: {format_path(self.path)}: {self.message}"
 
 
+class FieldError(ValueError):
+    """Raise from a config dataclass's ``__post_init__`` to report a problem at one of its fields."""
+
+    def __init__(self, field: str, message: str) -> None:
+        self.field = field
+        super().__init__(message)
+
+
 class ConfigError(ValueError):
     """Raised when a configuration source has one or more issues; ``str()`` lists them all."""
 
@@ -351,6 +359,9 @@ def _convert_dataclass(value: Any, cls: type, path: Path, src: SourceMap, issues
         return INVALID
     try:
         return cls(**kwargs)
+    except FieldError as exc:
+        issues.append(src.issue((*path, exc.field), str(exc)))
+        return INVALID
     except (ValueError, TypeError) as exc:
         issues.append(src.issue(path, str(exc)))
         return INVALID
@@ -385,6 +396,7 @@ def describe_schema(cls: type) -> list[tuple[str, str, str]]:
 __all__ = [
     "ConfigError",
     "Each",
+    "FieldError",
     "Ge",
     "Gt",
     "INVALID",

@@ -24,8 +24,8 @@ from ..plugins import GROUP_SYSTEMS, Registry
 from ..scene.config import SceneConfig
 from ..scene.layout import build_layout
 from ..scene.primitives import SceneLayout
-from ..vehicles.presets import VEHICLE_TYPES, presets_for
-from .schema import INVALID, ConfigError, Each, Ge, Gt, Issue, Le, NonEmpty, Path, SourceMap, convert
+from ..vehicles.presets import preset, presets_for
+from .schema import INVALID, ConfigError, Each, FieldError, Ge, Gt, Issue, Le, NonEmpty, Path, SourceMap, convert
 from .yaml_source import load_yaml_file, load_yaml_text
 
 _NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
@@ -94,6 +94,12 @@ class VehicleSpec:
     preset: str = "medium"
     pose: PoseSpec
     components: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        known = presets_for(self.type)
+        if self.preset not in known:
+            raise FieldError("preset", f"unknown {self.type} preset {self.preset!r} "
+                                       f"(expected one of: {', '.join(sorted(known))})")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -170,11 +176,6 @@ def resolve_world(doc: Any, src: SourceMap, registry: Registry | None = None,
         spec = replace(spec, world=replace(spec.world, seed=seed))
 
     _check_names(spec, src, issues)
-    for i, v in enumerate(spec.vehicles):
-        if v.type in VEHICLE_TYPES and v.preset not in presets_for(v.type):
-            issues.append(src.issue(("vehicles", i, "preset"),
-                                    f"unknown {v.type} preset {v.preset!r} (expected one of: "
-                                    f"{', '.join(sorted(presets_for(v.type)))})"))
 
     layout = None
     try:
@@ -240,17 +241,14 @@ def _resolve_entity(group: str, i: int, item: VehicleSpec | PackageSpec, layout:
     n_before = len(issues)
     if isinstance(item, VehicleSpec):
         kind = item.type
-        table = presets_for(kind)
-        if item.preset not in table:
-            return None  # already reported
-        params = dict(table[item.preset])
+        params = preset(kind, item.preset)
         half_z = float(params["body_half_extents_m"][2])
-        preset: str | None = item.preset
+        preset_name: str | None = item.preset
     else:
         kind = "package"
         params = {"mass_kg": item.mass_kg, "size_m": item.size_m}
         half_z = item.size_m[2] / 2.0
-        preset = None
+        preset_name = None
 
     pose = item.pose
     pose_path: Path = (group, i, "pose")
@@ -296,4 +294,4 @@ def _resolve_entity(group: str, i: int, item: VehicleSpec | PackageSpec, layout:
         return None
     index = counts.get(kind, 0)
     counts[kind] = index + 1
-    return EntityDefinition(item.name, kind, preset, index, pos, float(yaw_rad), params, components)
+    return EntityDefinition(item.name, kind, preset_name, index, pos, float(yaw_rad), params, components)
