@@ -313,6 +313,8 @@ def convert(value: Any, tp: Any, path: Path, src: SourceMap, issues: list[Issue]
 
     if origin is list:
         (elem,) = get_args(tp)
+        if value is None:  # `key:` with nothing under it
+            return []
         if not isinstance(value, list):
             issues.append(src.issue(path, f"expected {_type_name(tp)}, got {_describe(value)}"))
             return INVALID
@@ -321,6 +323,8 @@ def convert(value: Any, tp: Any, path: Path, src: SourceMap, issues: list[Issue]
 
     if origin is dict:
         key_t, val_t = get_args(tp)
+        if value is None:
+            return {}
         if not isinstance(value, dict):
             issues.append(src.issue(path, f"expected a mapping, got {_describe(value)}"))
             return INVALID
