@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -12,6 +13,8 @@ import esper
 import numpy as np
 
 from .components.body import FleetSlot, Identity, RigidBody
+from .components.mission import MissionRuntime
+from .config.schema import ConfigError, Issue
 from .config.world_file import EntityDefinition, WorldDefinition, load_world
 from .fleet import FleetState
 from .frames import quat_xyzw_from_euler_rpy
@@ -23,7 +26,9 @@ from .plugins import Registry
 from .systems.outputs import TrajectoryLogSystem
 from .systems.physics import PhysicsStepSystem
 from .systems.state import StateReadbackSystem
-from .world import EcsWorld, StepContext
+from .mission import MissionSpec, mission_reference_issues, parse_mission
+from .transport.bus import Arm, Inbox, LoadMission, SetTarget, Teleop
+from .world import EcsWorld, SimServices, StepContext
 
 PACKAGE_RGBA = (0.80, 0.60, 0.30, 1.0)
 
@@ -70,6 +75,8 @@ class Simulation:
         self._entities: dict[str, int] = {}
         self._mesh = None
         self._log: TrajectoryLogSystem | None = None
+        self.inbox = Inbox()
+        self.services = SimServices(world.layout, self.inbox, self._entities, [])
         self.ecs = EcsWorld(label=world.name)
         self.physics: PhysicsClient | None = None
         try:
@@ -111,8 +118,11 @@ class Simulation:
         esper.add_component(eid, Identity(name=ent.name, kind=ent.kind, preset=ent.preset, index=ent.index))
         esper.add_component(eid, FleetSlot(row=row))
         esper.add_component(eid, RigidBody(body_id=body, mass_kg=mass, half_extents_m=half))
-        for comp in ent.components.values():
-            esper.add_component(eid, comp)
+        for key, comp in ent.components.items():
+            if key == "mission":
+                esper.add_component(eid, MissionRuntime(spec=comp))
+            else:
+                esper.add_component(eid, comp)
         self._entities[ent.name] = eid
 
     def _add_systems(self, world: WorldDefinition) -> None:
@@ -145,7 +155,7 @@ class Simulation:
     def _context(self) -> StepContext:
         assert self.physics is not None
         return StepContext(self.step_count, self.step_count * self.dt_s, self.dt_s, self.rng, self.fleet,
-                           self.physics)
+                           self.physics, self.services)
 
     def step(self, n: int = 1) -> None:
         """Advance ``n`` physics steps, running every phase in order each step."""
@@ -196,7 +206,75 @@ class Simulation:
         return RunStats(self.sim_time_s, (self.step_count - start_step) * self.dt_s, time.perf_counter() - wall0,
                         self.step_count - start_step, interrupted)
 
+    # -- commands (applied at the next step's COMMANDS phase) ---------------------------------
+    def _drone(self, name: str) -> int:
+        ent = self.entity(name)
+        kind = self.definition_of(name).kind
+        if kind != "quadrotor":
+            raise ValueError(f"{name!r} is a {kind}, not a drone")
+        return ent
+
+    def set_target(self, name: str, x: float, y: float, z: float, yaw_deg: float | None = None,
+                   speed: float | None = None) -> None:
+        """Fly drone ``name`` to ENU ``(x, y, z)`` [m], facing ``yaw_deg`` (ENU, None = keep), at ``speed`` [m/s].
+
+        Cancels a running mission. Raises ``ValueError`` for non-finite values or a non-positive speed.
+        """
+        self._drone(name)
+        values = [x, y, z, *(v for v in (yaw_deg, speed) if v is not None)]
+        if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
+            raise ValueError(f"set_target({name!r}): values must be finite numbers, got {values}")
+        if speed is not None and speed <= 0:
+            raise ValueError(f"set_target({name!r}): speed must be > 0, got {speed}")
+        yaw = None if yaw_deg is None else math.radians(yaw_deg)
+        self.inbox.put(SetTarget(name, (float(x), float(y), float(z)), yaw, None if speed is None else float(speed)))
+
+    def load_mission(self, name: str, mission: str | MissionSpec) -> MissionSpec:
+        """Load a mission (JSON text in our or the paper's format, or a MissionSpec) and start it.
+
+        A bad mission is rejected whole with a :class:`ConfigError` naming the step and field; the
+        drone keeps doing what it was doing.
+        """
+        self._drone(name)
+        spec = parse_mission(mission, source=f"mission for {name}") if isinstance(mission, str) else mission
+        problems = mission_reference_issues(spec, self.layout, self.package_names)
+        if problems:
+            raise ConfigError([Issue(f"mission for {name}", None, path, msg) for path, msg in problems])
+        self.inbox.put(LoadMission(name, spec))
+        return spec
+
+    def teleop(self, name: str, throttle: float, pitch: float, roll: float, yaw: float) -> None:
+        """Fly drone ``name`` by sticks in [-1, 1] (MANUAL mode; see the stabilizer for the mapping)."""
+        self._drone(name)
+        stick = (throttle, pitch, roll, yaw)
+        if not all(isinstance(v, (int, float)) and math.isfinite(v) and -1.0 <= v <= 1.0 for v in stick):
+            raise ValueError(f"teleop({name!r}): sticks must be finite numbers in [-1, 1], got {stick}")
+        self.inbox.put(Teleop(name, tuple(float(v) for v in stick)))
+
+    def arm(self, name: str, armed: bool = True) -> None:
+        """Arm (hold position in AUTO mode) or disarm (motors off) drone ``name``."""
+        self._drone(name)
+        self.inbox.put(Arm(name, bool(armed)))
+
+    def mission_status(self, name: str) -> dict[str, Any] | None:
+        """Status of the drone's mission (step, step type, state, reason), or None without one."""
+        with self.ecs.active():
+            rt = esper.try_component(self.entity(name), MissionRuntime)
+            return None if rt is None else rt.status()
+
+    @property
+    def events(self) -> list[tuple[float, str, str]]:
+        """Rare events so far (mission steps, pickups, rejected commands): (sim time, vehicle, text)."""
+        return list(self.services.events)
+
     # -- queries -----------------------------------------------------------------------------
+    def definition_of(self, name: str) -> EntityDefinition:
+        """The world-file definition of vehicle or package ``name``."""
+        for ent in self.definition.entities:
+            if ent.name == name:
+                return ent
+        raise KeyError(f"no vehicle or package named {name!r}")
+
     @property
     def vehicle_names(self) -> list[str]:
         return [e.name for e in self.definition.vehicles]

@@ -1,4 +1,4 @@
-"""``unetyemu`` command line: run, validate, plugins.
+"""``unetyemu`` command line: run, validate, plugins, plot.
 
 Exit codes: 0 success, 1 runtime failure, 2 bad input (arguments or world file), 130 interrupted.
 """
@@ -71,6 +71,9 @@ def build_parser() -> argparse.ArgumentParser:
     val.add_argument("worlds", type=Path, nargs="+", metavar="WORLD")
 
     sub.add_parser("plugins", help="list installed components, systems and sensors")
+
+    plot = sub.add_parser("plot", help="write PNG plots of a run's drone logs")
+    plot.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a directory written by `unetyemu run`")
     return parser
 
 
@@ -82,6 +85,8 @@ def main(argv: list[str] | None = None) -> int:
             return cmd_run(args)
         if args.command == "validate":
             return cmd_validate(args)
+        if args.command == "plot":
+            return cmd_plot(args)
         return cmd_plugins()
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
@@ -180,6 +185,19 @@ def cmd_validate(args: argparse.Namespace) -> int:
         print(f"{path}: OK ({len(world.vehicles)} vehicles, {len(world.packages)} packages, "
               f"{len(world.layout.objects)} scene objects, {len(world.layout.pads)} pads)")
     return status
+
+
+def cmd_plot(args: argparse.Namespace) -> int:
+    from .plot import PlotError, plot_run
+
+    try:
+        paths = plot_run(args.run_dir)
+    except PlotError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    for path in paths:
+        print(path)
+    return EXIT_OK
 
 
 def cmd_plugins() -> int:

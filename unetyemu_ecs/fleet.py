@@ -30,7 +30,7 @@ class FleetState:
     entity : (C,) int64, esper entity id (-1 for a free row)
     """
 
-    _VEC3 = ("pos_enu_m", "vel_enu_m_s", "rate_enu_rad_s", "rate_flu_rad_s", "acc_enu_m_s2",
+    _BUILTIN_VEC3 = ("pos_enu_m", "vel_enu_m_s", "rate_enu_rad_s", "rate_flu_rad_s", "acc_enu_m_s2",
              "wind_enu_m_s", "force_cmd_enu_n", "torque_cmd_enu_n_m")
 
     def __init__(self, capacity: int = 8) -> None:
@@ -50,13 +50,37 @@ class FleetState:
         self.entity = np.zeros(0, dtype=np.int64)
         self._row_of_entity: dict[int, int] = {}
         self._active_rows = np.zeros(0, dtype=np.intp)
+        # name -> (tail shape, dtype, fill) of arrays declared by systems (see declare())
+        self._declared: dict[str, tuple[tuple[int, ...], np.dtype, float]] = {}
+        for name in self._BUILTIN_VEC3:
+            self._declared[name] = ((3,), np.dtype(np.float64), 0.0)
         self._grow(max(1, capacity))
+
+    def declare(self, name: str, tail_shape: tuple[int, ...] = (), dtype: type = np.float64,
+                fill: float = 0.0) -> np.ndarray:
+        """Add a per-row array ``name`` of shape ``(capacity, *tail_shape)`` (or return the existing one).
+
+        Declared arrays grow with the fleet and are reset to ``fill`` when a row is allocated. Systems
+        that own domain state (motor thrusts, setpoints, battery energy) declare it here so that
+        every per-row array lives in one place. Re-fetch the array after ``version`` changes: growth
+        reallocates it.
+        """
+        spec = (tuple(tail_shape), np.dtype(dtype), fill)
+        if name in self._declared:
+            if self._declared[name][:2] != spec[:2]:
+                raise ValueError(f"fleet array {name!r} already declared as {self._declared[name][:2]}")
+            return getattr(self, name)
+        if hasattr(self, name):
+            raise ValueError(f"{name!r} is a FleetState attribute, not a declarable array")
+        self._declared[name] = spec
+        setattr(self, name, np.full((self.capacity, *spec[0]), fill, dtype=spec[1]))
+        return getattr(self, name)
 
     # -- allocation ---------------------------------------------------------------------------
     def _grow(self, new_capacity: int) -> None:
         old = self.capacity
-        for name in self._VEC3:
-            arr = np.zeros((new_capacity, 3))
+        for name, (tail, dtype, fill) in self._declared.items():
+            arr = np.full((new_capacity, *tail), fill, dtype=dtype)
             arr[:old] = getattr(self, name)
             setattr(self, name, arr)
         quat = np.zeros((new_capacity, 4))
@@ -84,8 +108,8 @@ class FleetState:
             row = int(free[0])
         self.entity[row] = entity
         self.body_id[row] = body_id
-        for name in self._VEC3:
-            getattr(self, name)[row] = 0.0
+        for name, (_, _, fill) in self._declared.items():
+            getattr(self, name)[row] = fill
         self.quat_enu_flu_xyzw[row] = (0.0, 0.0, 0.0, 1.0)
         self.odometer_m[row] = 0.0
         self._row_of_entity[entity] = row

@@ -16,14 +16,20 @@ def build_summary(sim: Simulation, stats: RunStats) -> dict[str, Any]:
     entities = []
     for ent in d.entities:
         row = sim.row(ent.name)
-        entities.append({
+        item: dict[str, Any] = {
             "name": ent.name,
             "kind": ent.kind,
             "preset": ent.preset,
             "start_enu_m": [round(float(x), 3) for x in ent.pos_enu_m],
             "final_enu_m": [round(float(x), 3) for x in sim.fleet.pos_enu_m[row]],
             "distance_m": round(float(sim.fleet.odometer_m[row]), 3),
-        })
+        }
+        if ent.kind == "quadrotor" and hasattr(sim.fleet, "energy_used_j"):
+            status = sim.mission_status(ent.name)
+            item["mission"] = status
+            item["energy_used_wh"] = round(float(sim.fleet.energy_used_j[row]) / 3600.0, 4)
+            item["soc_frac"] = round(float(sim.fleet.soc_frac[row]), 5)
+        entities.append(item)
     return {
         "world": d.name,
         "world_file": d.file,
@@ -54,12 +60,26 @@ def format_summary(summary: dict[str, Any]) -> str:
     ]
     if ents:
         w = max(len("name"), *(len(e["name"]) for e in ents))
-        lines.append(f"  {'name':<{w}}  {'kind':<9}  {'preset':<7}  {'distance_m':>10}  final ENU [m]")
+        lines.append(f"  {'name':<{w}}  {'kind':<9}  {'preset':<7}  {'distance_m':>10}  {'energy_Wh':>9}  "
+                     f"{'final ENU [m]':<26}  mission")
         for e in ents:
             x, y, z = e["final_enu_m"]
+            energy = f"{e['energy_used_wh']:>9.2f}" if "energy_used_wh" in e else f"{'-':>9}"
             lines.append(f"  {e['name']:<{w}}  {e['kind']:<9}  {e['preset'] or '-':<7}  "
-                         f"{e['distance_m']:>10.2f}  ({x:.2f}, {y:.2f}, {z:.2f})")
+                         f"{e['distance_m']:>10.2f}  {energy}  {f'({x:.2f}, {y:.2f}, {z:.2f})':<26}  "
+                         f"{_mission_text(e.get('mission'))}")
     return "\n".join(lines)
+
+
+def _mission_text(status: dict[str, Any] | None) -> str:
+    if status is None:
+        return "-"
+    text = f"{status['mission']}: {status['state']}"
+    if status["state"] == "running":
+        text += f" (step {status['step'] + 1}/{status['steps']} {status['step_type']})"
+    elif status["state"] in ("failed", "cancelled"):
+        text += f" at step {status['step'] + 1} {status['step_type']}: {status['reason']}"
+    return text
 
 
 def write_summary(summary: dict[str, Any], out_dir: Path) -> Path:

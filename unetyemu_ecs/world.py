@@ -22,6 +22,30 @@ from .phases import Phase, priority
 if TYPE_CHECKING:
     from .fleet import FleetState
     from .physics.client import PhysicsClient
+    from .scene.primitives import SceneLayout
+    from .transport.bus import Inbox
+
+
+@dataclass
+class SimServices:
+    """World-level things systems may need besides the fleet arrays.
+
+    Attributes
+    ----------
+    layout : the static scene (pads, parking spots, surface heights)
+    inbox : commands from the API and transports, drained in COMMANDS
+    entities : world-file name -> esper entity id
+    events : (sim_time_s, vehicle, message) notices of rare events (mission steps, payload), in order
+    """
+
+    layout: SceneLayout
+    inbox: Inbox
+    entities: dict[str, int]
+    events: list[tuple[float, str, str]]
+
+    def note(self, sim_time_s: float, vehicle: str, message: str) -> None:
+        """Record a rare event (never called per step in steady state)."""
+        self.events.append((round(sim_time_s, 6), vehicle, message))
 
 
 @dataclass(frozen=True, slots=True)
@@ -35,7 +59,8 @@ class StepContext:
     dt_s : physics step [s]
     rng : the simulation's seeded random generator (never the global ``np.random``)
     fleet : hot per-body arrays
-    physics : the PyBullet client wrapper (only PHYSICS/PAYLOAD systems change it)
+    physics : the PyBullet client wrapper (ACTUATE applies forces, PHYSICS steps, PAYLOAD joins bodies)
+    services : layout, inbox, names, event notes
     """
 
     step: int
@@ -44,6 +69,7 @@ class StepContext:
     rng: np.random.Generator
     fleet: FleetState
     physics: PhysicsClient
+    services: SimServices
 
 
 class EcsWorld:

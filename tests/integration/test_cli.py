@@ -36,8 +36,18 @@ def test_run_urban_delivery_headless_prints_summary_and_writes_logs(tmp_path):
             rows = list(csv.DictReader(fh))
         assert len(rows) == 101
         assert float(rows[-1]["time_s"]) == 10.0
-        # parked vehicles stay where they were put (they are resting on the ground)
-        assert abs(float(rows[-1]["z_m"]) - float(rows[0]["z_m"])) < 0.05
+    # AND drones log their motors, power and mission; cars do not
+    with open(out / "drone1.csv", newline="") as fh:
+        header = next(csv.reader(fh))
+    assert {"thrust_fl_n", "power_w", "soc_frac", "remaining_time_s", "payload_kg", "mission_step"} <= set(header)
+    with open(out / "truck1.csv", newline="") as fh:
+        assert "thrust_fl_n" not in next(csv.reader(fh))
+    # AND the parked truck stays where it was put (resting on the road)
+    assert abs(float(rows[-1]["z_m"]) - float(rows[0]["z_m"])) < 0.05
+    # AND the summary reports each drone's mission, distance and energy
+    d1 = next(e for e in summary["entities"] if e["name"] == "drone1")
+    assert d1["mission"]["mission"] == "rooftop_delivery" and d1["energy_used_wh"] > 0 and d1["distance_m"] > 1
+    assert "rooftop_delivery: running" in res.stdout
 
 
 def test_validate_accepts_the_shipped_worlds():

@@ -24,7 +24,7 @@ from ..plugins import GROUP_SYSTEMS, Registry
 from ..scene.config import SceneConfig
 from ..scene.layout import build_layout
 from ..scene.primitives import SceneLayout
-from ..vehicles.presets import preset, presets_for
+from ..vehicles.presets import component_tables, preset, presets_for
 from .schema import INVALID, ConfigError, Each, FieldError, Ge, Gt, Issue, Le, NonEmpty, Path, SourceMap, convert
 from .yaml_source import load_yaml_file, load_yaml_text
 
@@ -275,7 +275,13 @@ def _resolve_entity(group: str, i: int, item: VehicleSpec | PackageSpec, layout:
                 yaw_rad = float(spot.yaw_rad)
 
     components: dict[str, Any] = {}
-    for key, block in item.components.items():
+    blocks: dict[str, Any] = dict(component_tables(params))       # the preset's built-in components
+    for key, block in item.components.items():                    # the world file's additions/overrides
+        if key in blocks and isinstance(block, dict):
+            blocks[key] = {**blocks[key], **block}
+        else:
+            blocks[key] = block
+    for key, block in blocks.items():
         cpath: Path = (group, i, "components", key)
         try:
             entry = registry.component_entry(key)

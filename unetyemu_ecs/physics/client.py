@@ -71,6 +71,36 @@ class PhysicsClient:
             if t[0] != 0.0 or t[1] != 0.0 or t[2] != 0.0:
                 torque(bid, -1, t.tolist(), p.WORLD_FRAME, physicsClientId=cid)
 
+    def apply_point_forces(self, body_ids: np.ndarray, force_enu_n: np.ndarray, point_enu_m: np.ndarray) -> None:
+        """Apply world-frame forces (K, 3) at world points (K, 3) on bodies (K,) for the next step."""
+        cid = self.id
+        force = p.applyExternalForce
+        frame = p.WORLD_FRAME
+        for bid, f, x in zip(body_ids.tolist(), force_enu_n.tolist(), point_enu_m.tolist()):
+            force(bid, -1, f, x, frame, physicsClientId=cid)
+
+    def attach_fixed(self, parent_body: int, child_body: int, max_force_n: float = 1e5) -> int:
+        """Join ``child_body`` rigidly to ``parent_body`` at their current relative pose; return the constraint id."""
+        cid = self.id
+        pp, qp = p.getBasePositionAndOrientation(parent_body, physicsClientId=cid)
+        pc, qc = p.getBasePositionAndOrientation(child_body, physicsClientId=cid)
+        inv_pos, inv_q = p.invertTransform(pp, qp)
+        rel_pos, rel_q = p.multiplyTransforms(inv_pos, inv_q, pc, qc)
+        constraint = p.createConstraint(parent_body, -1, child_body, -1, p.JOINT_FIXED, [0, 0, 0],
+                                        parentFramePosition=rel_pos, childFramePosition=[0, 0, 0],
+                                        parentFrameOrientation=rel_q, childFrameOrientation=[0, 0, 0, 1],
+                                        physicsClientId=cid)
+        p.changeConstraint(constraint, maxForce=max_force_n, physicsClientId=cid)
+        return constraint
+
+    def detach(self, constraint_id: int) -> None:
+        """Remove a constraint made by :meth:`attach_fixed`."""
+        p.removeConstraint(constraint_id, physicsClientId=self.id)
+
+    def touching(self, body: int) -> set[int]:
+        """Ids of the bodies ``body`` was in contact with at the last step."""
+        return {c[2] for c in p.getContactPoints(bodyA=body, physicsClientId=self.id)}
+
     def contact_count(self, body_a: int, body_b: int | None = None) -> int:
         """Number of contact points of ``body_a`` (with ``body_b`` if given) after the last step."""
         if body_b is None:

@@ -10,13 +10,18 @@ import esper
 import numpy as np
 
 from ..components.body import FleetSlot, Identity
+from ..components.mission import MissionRuntime
 from ..frames import euler_rpy_from_quat_xyzw
 from ..geodesy import GeodeticOrigin, LocalTangentPlane
 from ..phases import Phase
 from ..world import StepContext
+from .flight_state import FlightMode, declare_flight_arrays
 
 POSE_COLUMNS = ("time_s", "x_m", "y_m", "z_m", "roll_deg", "pitch_deg", "yaw_deg", "lat_deg", "lon_deg",
                 "alt_m", "vx_m_s", "vy_m_s", "vz_m_s", "speed_m_s")
+FLIGHT_COLUMNS = ("mode", "thrust_fl_n", "thrust_fr_n", "thrust_br_n", "thrust_bl_n", "thrust_total_n", "power_w",
+                  "energy_used_wh", "battery_wh", "soc_frac", "remaining_time_s", "payload_kg", "mission_step",
+                  "mission_step_type")
 
 
 class TrajectoryLogSystem(esper.Processor):
@@ -36,6 +41,8 @@ class TrajectoryLogSystem(esper.Processor):
         self._ltp = LocalTangentPlane(origin)
         self._files: list[IO[str]] = []
         self._writers: list[csv.writer] = []
+        self._flight: dict[int, bool] = {}      # writer index -> quadrotor (flight columns)
+        self._names: list[str] = []
         self._rows = np.empty(0, dtype=np.intp)
         self._seen_version = -1
         self.paths: dict[str, Path] = {}
@@ -43,12 +50,16 @@ class TrajectoryLogSystem(esper.Processor):
     def _gather(self) -> None:
         found = sorted(((ident.name, slot.row) for _, (ident, slot) in esper.get_components(Identity, FleetSlot)
                         if ident.kind != "package"))
+        kinds = {ident.name: ident.kind for _, ident in esper.get_component(Identity)}
+        self._mission_of = {ident.name: ent for ent, ident in esper.get_component(Identity)}
         new = [name for name, _ in found if name not in self.paths]
         for name in new:
             path = self.out_dir / f"{name}.csv"
             fh = open(path, "w", newline="", encoding="utf-8")  # noqa: SIM115 (closed in close())
             w = csv.writer(fh)
-            w.writerow(POSE_COLUMNS)
+            w.writerow(POSE_COLUMNS + (FLIGHT_COLUMNS if kinds[name] == "quadrotor" else ()))
+            self._flight[len(self._files)] = kinds[name] == "quadrotor"
+            self._names.append(name)
             self.paths[name] = path
             self._files.append(fh)
             self._writers.append(w)
@@ -61,6 +72,7 @@ class TrajectoryLogSystem(esper.Processor):
         """Write the current state of every vehicle, stamped ``time_s``."""
         f = ctx.fleet
         if f.version != self._seen_version:
+            declare_flight_arrays(f)
             self._gather()
             self._seen_version = f.version
         r = self._rows
@@ -72,12 +84,27 @@ class TrajectoryLogSystem(esper.Processor):
         lat, lon, alt = self._ltp.to_geodetic(pos)
         speed = np.linalg.norm(vel, axis=1)
         for k, wi in enumerate(self._writer_idx):
-            self._writers[wi].writerow(
-                [f"{time_s:.4f}", *(f"{x:.4f}" for x in pos[k]), *(f"{a:.3f}" for a in rpy_deg[k]),
-                 f"{lat[k]:.9f}", f"{lon[k]:.9f}", f"{alt[k]:.4f}", *(f"{v:.4f}" for v in vel[k]),
-                 f"{speed[k]:.4f}"])
+            row = [f"{time_s:.4f}", *(f"{x:.4f}" for x in pos[k]), *(f"{a:.3f}" for a in rpy_deg[k]),
+                   f"{lat[k]:.9f}", f"{lon[k]:.9f}", f"{alt[k]:.4f}", *(f"{v:.4f}" for v in vel[k]),
+                   f"{speed[k]:.4f}"]
+            if self._flight[wi]:
+                row += self._flight_columns(f, int(r[k]), self._names[wi])
+            self._writers[wi].writerow(row)
         for wi in set(self._writer_idx):
             self._files[wi].flush()
+
+    def _flight_columns(self, f, row: int, name: str) -> list[str]:
+        thrust = f.motor_thrust_n[row]
+        step = int(f.mission_step[row])
+        step_type = ""
+        if step >= 0:
+            rt = esper.try_component(self._mission_of[name], MissionRuntime)
+            if rt is not None:
+                step_type = rt.spec.steps[step].type
+        return [FlightMode(int(f.flight_mode[row])).name.lower(), *(f"{t:.4f}" for t in thrust),
+                f"{thrust.sum():.4f}", f"{f.power_w[row]:.3f}", f"{f.energy_used_j[row] / 3600.0:.5f}",
+                f"{f.energy_j[row] / 3600.0:.5f}", f"{f.soc_frac[row]:.6f}",
+                f"{min(f.remaining_time_s[row], 1e9):.1f}", f"{f.payload_kg[row]:.3f}", str(step), step_type]
 
     def process(self, ctx: StepContext) -> None:
         if (ctx.step + 1) % self.decimation == 0:

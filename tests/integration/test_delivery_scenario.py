@@ -1,0 +1,93 @@
+"""The paper's delivery scenario end to end (worlds/urban_delivery.yaml), its logs and plots."""
+
+from __future__ import annotations
+
+import csv
+import filecmp
+
+import numpy as np
+import pytest
+
+from unetyemu_ecs import Simulation
+from unetyemu_ecs.cli import main as cli_main
+
+from ..conftest import WORLDS
+
+WORLD = WORLDS / "urban_delivery.yaml"
+
+
+def _rows(path) -> list[dict[str, str]]:
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+@pytest.fixture(scope="module")
+def delivery_run(tmp_path_factory):
+    """Run the whole scenario once (150 s simulated) and keep its outputs."""
+    out = tmp_path_factory.mktemp("delivery")
+    with Simulation.from_file(WORLD, out_dir=out) as sim:
+        sim.run(until=150.0)
+        result = {
+            "status": {name: sim.mission_status(name) for name in ("drone1", "drone2")},
+            "package": sim.position_enu_m("package1"),
+            "roof": sim.layout.pads["roof_1"],
+            "drone1": sim.position_enu_m("drone1"),
+            "home": sim.layout.pads["start_1"],
+            "drone3_z": sim.position_enu_m("drone3")[2],
+            "events": sim.events,
+        }
+    return out, result
+
+
+def test_delivery_mission_completes_and_the_package_ends_on_the_rooftop_pad(delivery_run):
+    _, r = delivery_run
+    assert r["status"]["drone1"]["state"] == "completed", r["events"]
+    pad = r["roof"]
+    # the package rests on the pad: within the pad's square, its bottom on the pad top
+    assert np.all(np.abs(r["package"][:2] - pad.center_enu_m[:2]) < pad.size_m / 2)
+    assert r["package"][2] == pytest.approx(pad.center_enu_m[2] + 0.15, abs=0.05)
+    # and drone 1 is back home
+    assert np.linalg.norm(r["drone1"][:2] - r["home"].center_enu_m[:2]) < 1.5
+
+
+def test_target_sequence_drone_completes_and_teleop_drone_hovers(delivery_run):
+    _, r = delivery_run
+    assert r["status"]["drone2"]["state"] == "completed", r["events"]
+    assert r["drone3_z"] > 5.0
+
+
+def test_csv_shows_the_power_step_at_pickup_and_back_after_delivery(delivery_run):
+    out, _ = delivery_run
+    rows = _rows(out / "drone1.csv")
+    hover_power = {True: [], False: []}
+    for row in rows:
+        if row["mode"] == "auto" and float(row["speed_m_s"]) < 0.3 and float(row["z_m"]) > 20.0:
+            hover_power[float(row["payload_kg"]) > 0].append(float(row["power_w"]))
+    assert hover_power[True] and hover_power[False]
+    loaded, empty = np.median(hover_power[True]), np.median(hover_power[False])
+    # rotor power scales as mass^1.5: (10.5 / 8) ** 1.5 = 1.50
+    assert (loaded - 15.0) / (empty - 15.0) == pytest.approx(1.50, rel=0.05)
+    kinds = {row["mission_step_type"] for row in rows}
+    assert {"pickup", "takeoff", "cruise", "land", "deliver"} <= kinds
+
+
+def test_same_world_and_seed_twice_give_identical_csv_files(tmp_path):
+    for run in ("a", "b"):
+        with Simulation.from_file(WORLD, out_dir=tmp_path / run) as sim:
+            sim.run(until=20.0)
+    for name in ("drone1", "drone2", "drone3", "truck1"):
+        assert filecmp.cmp(tmp_path / "a" / f"{name}.csv", tmp_path / "b" / f"{name}.csv", shallow=False)
+
+
+def test_plot_writes_one_png_per_drone_from_a_run(delivery_run, capsys):
+    out, _ = delivery_run
+    assert cli_main(["plot", str(out)]) == 0
+    for name in ("drone1", "drone2", "drone3"):
+        png = out / f"{name}.png"
+        assert png.exists() and png.stat().st_size > 20_000
+    assert not (out / "truck1.png").exists()
+
+
+def test_plot_of_a_directory_without_drone_logs_is_bad_input(tmp_path, capsys):
+    assert cli_main(["plot", str(tmp_path)]) == 2
+    assert "no drone logs" in capsys.readouterr().err

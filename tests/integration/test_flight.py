@@ -1,0 +1,303 @@
+"""The quadrotor flight stack in PyBullet: hover, payload, energy, limits, pursuit, modes.
+
+Physics is checked against physics: hover thrust equals weight, hover power equals the
+actuator-disk formula, a package raises both by what its mass implies.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from unetyemu_ecs import Simulation, load_world_text
+from unetyemu_ecs.control.energy import hover_power_w
+from unetyemu_ecs.systems.flight_state import FlightMode
+
+G = 9.81
+
+
+def flat_world(drones: str, packages: str = "", extra: str = "") -> str:
+    return f"""
+world: {{name: flight, physics_hz: 240, seed: 7}}
+scene:
+  generator: none
+  ground_size_m: 300
+  pads:
+    - {{name: home, position_m: [0, 0]}}
+    - {{name: away, position_m: [30, 0]}}
+packages:
+{packages or '  []'}
+vehicles:
+{drones}
+{extra}
+"""
+
+
+def drone(name: str, preset: str = "medium", pose: str = "{position_m: [0.0, 0.0, 0.3]}", components: str = "") -> str:
+    text = f"  - name: {name}\n    type: quadrotor\n    preset: {preset}\n    pose: {pose}\n"
+    if components:
+        text += "    components:\n" + components
+    return text
+
+
+def hover(sim: Simulation, name: str, z: float, settle_s: float) -> None:
+    x, y, _ = sim.position_enu_m(name)
+    sim.set_target(name, x, y, z)
+    sim.run(duration=settle_s)
+
+
+def measure(sim: Simulation, name: str, seconds: float) -> dict[str, np.ndarray]:
+    """Record altitude, total thrust and power every step for ``seconds``."""
+    row = sim.row(name)
+    z, thrust, power, cmd = [], [], [], []
+    for _ in range(int(round(seconds / sim.dt_s))):
+        sim.step()
+        f = sim.fleet
+        z.append(f.pos_enu_m[row, 2])
+        thrust.append(f.motor_thrust_n[row].sum())
+        power.append(f.power_w[row])
+        cmd.append(f.motor_thrust_cmd_n[row].copy())
+    return {"z": np.array(z), "thrust": np.array(thrust), "power": np.array(power), "cmd": np.array(cmd)}
+
+
+@pytest.fixture(scope="module")
+def medium_hover():
+    """A medium drone hovering at 10 m for 20 s, then measured for 5 s."""
+    with Simulation(load_world_text(flat_world(drone("d1")))) as sim:
+        hover(sim, "d1", 10.0, 20.0)
+        yield sim, measure(sim, "d1", 5.0)
+
+
+def test_medium_drone_holds_10_m_within_5_cm_after_settling(medium_hover):
+    _, m = medium_hover
+    assert np.max(np.abs(m["z"] - 10.0)) < 0.05
+
+
+def test_hover_thrust_equals_weight_within_1_percent(medium_hover):
+    _, m = medium_hover
+    assert np.mean(m["thrust"]) == pytest.approx(8.0 * G, rel=0.01)
+
+
+def test_hover_power_equals_the_actuator_disk_formula_within_1_percent(medium_hover):
+    # P = 4 (mg/4)^1.5 / (sqrt(2 rho A) eta) + P0 with rho 1.225, r 0.14 m, eta 0.9, P0 15 W
+    _, m = medium_hover
+    expected = hover_power_w(8.0, 4, G, 1.225, 0.14, 0.90, 15.0)
+    assert np.mean(m["power"]) == pytest.approx(expected, rel=0.01)
+
+
+PICKUP_MISSION = """
+      mission:
+        name: lift
+        steps:
+          - {type: pickup, package: parcel}
+          - {type: takeoff, altitude_m: 10.0}
+          - {type: idle, duration_s: 60.0}
+"""
+
+
+def _package(mass: float) -> str:
+    return f"  - {{name: parcel, mass_kg: {mass}, size_m: [0.4, 0.4, 0.3], pose: {{position_m: [1.0, 0.0, 0.15]}}}}"
+
+
+def test_picking_up_2_5_kg_raises_hover_thrust_by_its_weight_and_rotor_power_by_the_mass_ratio_to_1_5(
+        medium_hover):
+    # GIVEN the medium drone's unloaded hover (same gains, same everything)
+    _, unloaded = medium_hover
+    # WHEN it picks up a 2.5 kg package and hovers 10 m above the ground with it
+    world = flat_world(drone("d1", components=PICKUP_MISSION), packages=_package(2.5))
+    with Simulation(load_world_text(world)) as sim:
+        sim.run(until=45.0)
+        status = sim.mission_status("d1")
+        assert status["state"] == "running" and status["step_type"] == "idle", status
+        assert sim.fleet.payload_kg[sim.row("d1")] == 2.5
+        loaded = measure(sim, "d1", 5.0)
+    # THEN thrust rose by 2.5 g and rotor power by ((8 + 2.5) / 8) ** 1.5 (P0 excluded)
+    assert np.mean(loaded["thrust"]) - np.mean(unloaded["thrust"]) == pytest.approx(2.5 * G, rel=0.02)
+    ratio = (np.mean(loaded["power"]) - 15.0) / (np.mean(unloaded["power"]) - 15.0)
+    assert ratio == pytest.approx(((8 + 2.5) / 8) ** 1.5, rel=0.02)
+    # AND it still holds its altitude: the integrator took the load, no gain changed
+    assert np.max(np.abs(loaded["z"] - np.mean(loaded["z"]))) < 0.05
+
+
+def test_overweight_pickup_fails_and_the_drone_stays_down():
+    # GIVEN a medium drone (max payload 3 kg) and a 4 kg package
+    world = flat_world(drone("d1", components=PICKUP_MISSION), packages=_package(4.0))
+    with Simulation(load_world_text(world)) as sim:
+        # WHEN the mission runs for a while
+        sim.run(until=30.0)
+        status = sim.mission_status("d1")
+        row = sim.row("d1")
+        # THEN the pickup failed for being overweight, the motors are off and the drone is down
+        assert status["state"] == "failed" and status["reason"] == "overweight"
+        assert status["step_type"] == "pickup"
+        assert not sim.fleet.motors_enabled[row]
+        assert np.all(sim.fleet.motor_thrust_n[row] == 0.0)
+        assert sim.position_enu_m("d1")[2] < 1.0
+
+
+def test_disarmed_drone_on_the_ground_draws_only_p0():
+    with Simulation(load_world_text(flat_world(drone("d1")))) as sim:
+        sim.run(until=2.0)
+        row = sim.row("d1")
+        assert sim.fleet.flight_mode[row] == FlightMode.DISARMED
+        assert sim.fleet.power_w[row] == pytest.approx(15.0)
+        assert sim.fleet.energy_used_j[row] == pytest.approx(15.0 * 2.0, rel=1e-3)
+
+
+def test_no_motor_command_leaves_0_to_f_max_during_aggressive_steps(rng):
+    # GIVEN a small drone (F_max 20 N) hovering
+    with Simulation(load_world_text(flat_world(drone("d1", preset="small")))) as sim:
+        hover(sim, "d1", 10.0, 5.0)
+        cmds = []
+        # WHEN it is thrown at random far targets, each for 1.5 s, at high speed
+        for _ in range(12):
+            x, y = rng.uniform(-60, 60, 2)
+            z = rng.uniform(2, 40)
+            sim.set_target("d1", x, y, z, yaw_deg=float(rng.uniform(-180, 180)), speed=15.0)
+            cmds.append(measure(sim, "d1", 1.5)["cmd"])
+        cmds = np.concatenate(cmds)
+    # THEN every motor command stayed within [0, F_max], and the limits were actually reached
+    assert cmds.min() >= 0.0 and cmds.max() <= 20.0
+    assert np.isclose(cmds, 0.0).any() or np.isclose(cmds, 20.0).any()
+
+
+def _roll_rise_time(preset: str) -> float:
+    """10-90 % rise time of roll after a roll-stick step at hover (same default gains for all presets)."""
+    with Simulation(load_world_text(flat_world(drone("d1", preset=preset)))) as sim:
+        hover(sim, "d1", 20.0, 10.0)
+        sim.teleop("d1", 0.0, 0.0, 0.0, 0.0)
+        sim.run(duration=1.0)
+        row = sim.row("d1")
+        sim.teleop("d1", 0.0, 0.0, 0.5, 0.0)
+        t, roll = [], []
+        for _ in range(int(2.0 / sim.dt_s)):
+            sim.step()
+            q = sim.fleet.quat_enu_flu_xyzw[row]
+            roll.append(math.atan2(2 * (q[3] * q[0] + q[1] * q[2]), 1 - 2 * (q[0] ** 2 + q[1] ** 2)))
+            t.append(sim.sim_time_s)
+    roll = np.array(roll) - roll[0]
+    final = np.mean(roll[-60:])
+    assert abs(final) > math.radians(5)
+    t10 = t[int(np.argmax(np.abs(roll) >= 0.1 * abs(final)))]
+    t90 = t[int(np.argmax(np.abs(roll) >= 0.9 * abs(final)))]
+    return t90 - t10
+
+
+def test_large_drone_rolls_slower_than_small_drone_with_the_same_gains():
+    # The paper's observation, measured: more inertia per unit of motor torque => slower attitude.
+    small, large = _roll_rise_time("small"), _roll_rise_time("large")
+    assert large > 1.2 * small
+
+
+def test_pure_pursuit_flies_a_4_waypoint_route_within_half_a_metre_and_stops_on_the_last_point():
+    mission = """
+      mission:
+        name: square
+        cruise_speed: 3.0
+        steps:
+          - {type: takeoff, altitude_m: 10.0}
+          - type: cruise
+            waypoints:
+              - {x: 20.0, y: 0.0, z: 10.0}
+              - {x: 20.0, y: 20.0, z: 10.0}
+              - {x: 0.0, y: 20.0, z: 10.0}
+              - {x: 0.0, y: 40.0, z: 10.0}
+          - {type: idle, duration_s: 30.0}
+"""
+    legs = np.array([[0, 0, 10], [20, 0, 10], [20, 20, 10], [0, 20, 10], [0, 40, 10]], dtype=float)
+    with Simulation(load_world_text(flat_world(drone("d1", components=mission)))) as sim:
+        row = sim.row("d1")
+        while sim.mission_status("d1")["step_type"] != "cruise":
+            sim.step()
+        track, ys = [], []
+        while sim.mission_status("d1")["step_type"] == "cruise":
+            sim.step()
+            p = sim.fleet.pos_enu_m[row]
+            track.append(min(_dist_to_segment(p, a, b) for a, b in zip(legs[:-1], legs[1:])))
+            ys.append(p[1])
+        sim.run(duration=10.0)
+        final = sim.position_enu_m("d1")
+    assert max(track) < 0.5
+    assert max(ys) - 40.0 < 0.3
+    assert np.linalg.norm(final - legs[-1]) < 0.3
+
+
+def _dist_to_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    d = b - a
+    t = np.clip(np.dot(p - a, d) / np.dot(d, d), 0, 1)
+    return float(np.linalg.norm(p - (a + t * d)))
+
+
+def test_switching_from_auto_to_manual_at_hover_does_not_jump_thrust_or_attitude():
+    with Simulation(load_world_text(flat_world(drone("d1")))) as sim:
+        hover(sim, "d1", 10.0, 15.0)
+        row = sim.row("d1")
+        before = measure(sim, "d1", 0.5)
+        sim.teleop("d1", 0.0, 0.0, 0.0, 0.0)
+        after = measure(sim, "d1", 0.5)
+        assert sim.fleet.flight_mode[row] == FlightMode.MANUAL
+        # thrust continuous across the switch (well under 1 % of the weight)
+        assert abs(after["thrust"][0] - before["thrust"][-1]) < 0.01 * 8.0 * G
+        assert np.max(np.abs(after["z"] - 10.0)) < 0.1
+
+
+def test_low_battery_ends_the_mission_and_lands():
+    comps = """
+      energy: {initial_soc_frac: 0.102, battery_wh: 20.0}
+      mission:
+        name: long
+        steps:
+          - {type: takeoff, altitude_m: 10.0}
+          - {type: idle, duration_s: 300.0}
+"""
+    with Simulation(load_world_text(flat_world(drone("d1", components=comps)))) as sim:
+        sim.run(until=60.0)
+        status = sim.mission_status("d1")
+        assert status["state"] == "failed" and status["reason"] == "low_battery"
+        assert sim.fleet.flight_mode[sim.row("d1")] == FlightMode.DISARMED
+        assert sim.position_enu_m("d1")[2] < 0.5
+
+
+def test_recharge_on_a_pad_refills_the_battery_at_the_charger_power():
+    comps = """
+      energy: {initial_soc_frac: 0.5, charge_power_w: 2000.0}
+      mission:
+        name: charge
+        steps:
+          - {type: recharge, target_soc_frac: 0.6}
+"""
+    with Simulation(load_world_text(flat_world(drone("d1", pose="{pad: home}", components=comps)))) as sim:
+        sim.run(until=100.0)
+        status = sim.mission_status("d1")
+        # 10 % of 500 Wh = 50 Wh at (2000 - 15) W net takes about 90.7 s
+        assert status["state"] == "completed"
+        assert sim.fleet.soc_frac[sim.row("d1")] == pytest.approx(0.6, abs=0.002)
+
+
+def test_bad_mission_is_rejected_whole_and_the_drone_keeps_hovering():
+    from unetyemu_ecs import ConfigError
+
+    with Simulation(load_world_text(flat_world(drone("d1")))) as sim:
+        hover(sim, "d1", 10.0, 10.0)
+        bad = '{"steps": [{"type": "takeoff"}, {"type": "cruise", "waypoints": [{"x": 1, "y": 2, "z": "high"}]}]}'
+        with pytest.raises(ConfigError, match=r"steps\[1\]\.waypoints\[0\]\.z"):
+            sim.load_mission("d1", bad)
+        with pytest.raises(ConfigError, match="unknown pad 'nowhere'"):
+            sim.load_mission("d1", '{"steps": [{"type": "land", "pad": "nowhere"}]}')
+        sim.run(duration=2.0)
+        assert sim.mission_status("d1") is None
+        assert abs(sim.position_enu_m("d1")[2] - 10.0) < 0.1
+
+
+def test_bad_api_commands_raise_and_change_nothing():
+    with Simulation(load_world_text(flat_world(drone("d1")))) as sim:
+        with pytest.raises(ValueError, match="finite"):
+            sim.set_target("d1", float("nan"), 0, 10)
+        with pytest.raises(ValueError, match=r"\[-1, 1\]"):
+            sim.teleop("d1", 2.0, 0, 0, 0)
+        with pytest.raises(KeyError, match="no vehicle"):
+            sim.set_target("ghost", 0, 0, 10)
+        sim.step(10)
+        assert sim.fleet.flight_mode[sim.row("d1")] == FlightMode.DISARMED

@@ -1,0 +1,118 @@
+"""COMMANDS phase: apply queued commands (API, ROS 2, MAVLink, teleop) and scripted teleop.
+
+Commands arrive as frozen messages in the inbox; only the newest per vehicle and kind is applied.
+Each is validated again here (finite numbers, known vehicle, drone-only commands on drones): a bad
+one is dropped with a note in the event log, and the simulation goes on.
+"""
+
+from __future__ import annotations
+
+import math
+
+import esper
+import numpy as np
+
+from ..components.body import FleetSlot, Identity
+from ..components.flight import GuidanceLimits, TeleopScript
+from ..components.mission import MissionRuntime
+from ..phases import Phase
+from ..transport.bus import Arm, LoadMission, SetTarget, Teleop
+from ..world import StepContext
+from .flight_state import FlightMode, Route, declare_flight_arrays, set_route
+
+
+class FlightCommandSystem(esper.Processor):
+    """Turn commands into modes, routes, sticks and missions.
+
+    Phase: COMMANDS. Reads: the inbox, TeleopScript components. Writes: flight_mode, stick, routes,
+    MissionRuntime components.
+    """
+
+    phase = Phase.COMMANDS
+    order = 10
+
+    def __init__(self) -> None:
+        self._script_next: dict[int, int] = {}      # entity -> index of the next keyframe to apply
+
+    def process(self, ctx: StepContext) -> None:
+        f = ctx.fleet
+        declare_flight_arrays(f)
+        for msg in ctx.services.inbox.drain_latest():
+            error = self._apply(ctx, msg)
+            if error:
+                ctx.services.note(ctx.sim_time_s, msg.vehicle, f"rejected {msg.kind} command: {error}")
+        for ent, (slot, script) in esper.get_components(FleetSlot, TeleopScript):
+            k = self._script_next.get(ent, 0)
+            frames = script.keyframes
+            applied = False
+            while k < len(frames) and frames[k].t_s <= ctx.sim_time_s + 1e-9:
+                f.stick[slot.row] = frames[k].stick
+                k += 1
+                applied = True
+            if applied:
+                f.flight_mode[slot.row] = FlightMode.MANUAL
+                _cancel_mission(ctx, ent, "teleop")
+            self._script_next[ent] = k
+
+    def _apply(self, ctx: StepContext, msg: object) -> str:
+        f = ctx.fleet
+        ent = ctx.services.entities.get(msg.vehicle)
+        if ent is None:
+            return f"unknown vehicle {msg.vehicle!r}"
+        if not esper.has_component(ent, GuidanceLimits):
+            kind = esper.component_for_entity(ent, Identity).kind
+            return f"{msg.kind} commands need a drone with a flight stack, {msg.vehicle!r} is a {kind}"
+        row = esper.component_for_entity(ent, FleetSlot).row
+        lim = esper.component_for_entity(ent, GuidanceLimits)
+        if isinstance(msg, SetTarget):
+            values = [*msg.pos_enu_m, *(v for v in (msg.yaw_rad, msg.speed_m_s) if v is not None)]
+            if not all(math.isfinite(v) for v in values):
+                return "target values must be finite numbers"
+            if msg.speed_m_s is not None and msg.speed_m_s <= 0.0:
+                return f"speed must be > 0, got {msg.speed_m_s}"
+            pos = f.pos_enu_m[row].copy()
+            cruise = msg.speed_m_s if msg.speed_m_s is not None else lim.cruise_speed_m_s
+            sp = (cruise, lim.climb_speed_m_s, lim.descent_speed_m_s)
+            yaw = np.nan if msg.yaw_rad is None else msg.yaw_rad
+            _cancel_mission(ctx, ent, "set_target")
+            f.flight_mode[row] = FlightMode.AUTO
+            set_route(f, row, Route(np.array([pos, msg.pos_enu_m], dtype=float), np.array([sp, sp]), float(yaw)))
+            ctx.services.note(ctx.sim_time_s, msg.vehicle, f"target set to {tuple(round(v, 2) for v in msg.pos_enu_m)}")
+            return ""
+        if isinstance(msg, Teleop):
+            if len(msg.stick) != 4 or not all(math.isfinite(v) and -1.0 <= v <= 1.0 for v in msg.stick):
+                return "teleop needs 4 finite values in [-1, 1]"
+            f.stick[row] = msg.stick
+            if f.flight_mode[row] != FlightMode.MANUAL:
+                _cancel_mission(ctx, ent, "teleop")
+                f.flight_mode[row] = FlightMode.MANUAL
+            return ""
+        if isinstance(msg, LoadMission):
+            if esper.has_component(ent, MissionRuntime):
+                esper.remove_component(ent, MissionRuntime)
+            esper.add_component(ent, MissionRuntime(spec=msg.mission, stage_started_s=ctx.sim_time_s))
+            ctx.services.note(ctx.sim_time_s, msg.vehicle, f"mission {msg.mission.name} loaded "
+                                                           f"({len(msg.mission.steps)} steps)")
+            return ""
+        if isinstance(msg, Arm):
+            if msg.armed:
+                if f.flight_mode[row] == FlightMode.DISARMED:
+                    f.flight_mode[row] = FlightMode.AUTO
+                    pos = f.pos_enu_m[row].copy()
+                    sp = np.ones(3)
+                    set_route(f, row, Route(np.array([pos, pos]), np.array([sp, sp]), np.nan))
+            else:
+                _cancel_mission(ctx, ent, "disarm")
+                f.flight_mode[row] = FlightMode.DISARMED
+                set_route(f, row, None)
+            return ""
+        return f"unsupported command {type(msg).__name__}"
+
+
+def _cancel_mission(ctx: StepContext, ent: int, why: str) -> None:
+    rt = esper.try_component(ent, MissionRuntime)
+    if rt is not None and rt.state == "running":
+        rt.state, rt.reason = "cancelled", why
+        ctx.fleet.charging[ctx.fleet.row_of(ent)] = False
+        name = esper.component_for_entity(ent, Identity).name
+        ctx.services.note(ctx.sim_time_s, name, f"mission {rt.spec.name} cancelled by {why}")

@@ -1,0 +1,114 @@
+"""Per-drone flight state shared by the flight-stack systems: modes, routes, fleet arrays.
+
+Every array is declared on the :class:`~unetyemu_ecs.fleet.FleetState` (one row per body; only
+quadrotor rows are used), so the whole flight state of the fleet lives in one place and each phase
+works on it in one vectorised pass.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum
+
+import numpy as np
+
+from ..fleet import FleetState
+
+
+class FlightMode(IntEnum):
+    """How a drone is being flown."""
+
+    DISARMED = 0   # motors off
+    MANUAL = 1     # teleop sticks -> stabilizer setpoints
+    AUTO = 2       # route / target -> guidance -> stabilizer setpoints
+
+
+class PayloadRequest(IntEnum):
+    """What the mission asks the payload system to do this step (``payload_request``)."""
+
+    NONE = 0
+    ATTACH = 1
+    RELEASE = 2
+
+
+class PayloadResult(IntEnum):
+    """What the payload system did (``payload_result``), read by the mission next step."""
+
+    NONE = 0
+    ATTACHED = 1
+    RELEASED = 2
+    NOTHING_IN_REACH = 3
+    OVERWEIGHT = 4
+
+
+@dataclass(frozen=True)
+class Route:
+    """A polyline to follow: point 0 is where the drone was when the route was given.
+
+    points_enu_m : (W, 3) [m], ENU, W >= 2
+    speeds_m_s : (W, 3) [m/s], (cruise, climb, descent) at each point
+    yaw_sp_rad : heading to hold, ENU (NaN: keep the current heading)
+    """
+
+    points_enu_m: np.ndarray
+    speeds_m_s: np.ndarray
+    yaw_sp_rad: float
+
+    def __post_init__(self) -> None:
+        if self.points_enu_m.ndim != 2 or self.points_enu_m.shape[1] != 3 or self.points_enu_m.shape[0] < 2:
+            raise ValueError(f"route points must be (W >= 2, 3), got {self.points_enu_m.shape}")
+        if self.speeds_m_s.shape != self.points_enu_m.shape:
+            raise ValueError("route speeds must have the shape of its points")
+
+
+# name -> (tail shape, dtype, fill)
+FLIGHT_ARRAYS: dict[str, tuple[tuple[int, ...], type, float]] = {
+    "flight_mode": ((), np.int8, 0),
+    "motors_enabled": ((), np.bool_, True),
+    "stick": ((4,), np.float64, 0.0),                 # [throttle, pitch, roll, yaw] in [-1, 1]
+    "route_stamp": ((), np.int64, 0),                 # bumped whenever `route` changes
+    "route_segment": ((), np.int64, 0),
+    "arrived": ((), np.bool_, False),                 # within arrival radius of the route's end
+    "dist_to_final_m": ((), np.float64, 0.0),
+    "cross_track_m": ((), np.float64, 0.0),
+    "pos_sp_enu_m": ((3,), np.float64, 0.0),          # virtual target of the position loop
+    "vel_sp_enu_m_s": ((3,), np.float64, 0.0),
+    "vel_int_m_s": ((2,), np.float64, 0.0),           # horizontal velocity-loop integral
+    "vz_sp_m_s": ((), np.float64, 0.0),
+    "vz_int_m_s": ((), np.float64, 0.0),              # vertical-speed-loop integral
+    "roll_sp_rad": ((), np.float64, 0.0),
+    "pitch_sp_rad": ((), np.float64, 0.0),
+    "yaw_rate_sp_rad_s": ((), np.float64, 0.0),
+    "thrust_frac_sp": ((), np.float64, 0.0),          # collective, fraction of 4 F_max
+    "torque_cmd": ((3,), np.float64, 0.0),            # normalised [roll, pitch, yaw]
+    "motor_thrust_cmd_n": ((4,), np.float64, 0.0),    # FL, FR, BR, BL
+    "motor_thrust_n": ((4,), np.float64, 0.0),        # after lag: what is applied
+    "power_w": ((), np.float64, 0.0),
+    "power_filt_w": ((), np.float64, 0.0),
+    "energy_j": ((), np.float64, 0.0),                # left in the battery
+    "energy_used_j": ((), np.float64, 0.0),
+    "soc_frac": ((), np.float64, 1.0),
+    "remaining_time_s": ((), np.float64, np.inf),
+    "charging": ((), np.bool_, False),
+    "charge_power_w": ((), np.float64, 0.0),
+    "low_battery": ((), np.bool_, False),
+    "payload_kg": ((), np.float64, 0.0),
+    "payload_request": ((), np.int8, 0),
+    "payload_result": ((), np.int8, 0),
+    "mission_step": ((), np.int64, -1),               # index of the running mission step, -1 none
+}
+
+
+def declare_flight_arrays(fleet: FleetState) -> None:
+    """Declare every flight array on ``fleet`` (idempotent), plus the per-row route objects."""
+    for name, (tail, dtype, fill) in FLIGHT_ARRAYS.items():
+        fleet.declare(name, tail, dtype, fill)
+    fleet.declare("route", (), object, None)
+
+
+def set_route(fleet: FleetState, row: int, route: Route | None) -> None:
+    """Give drone ``row`` a new route (None clears it) and restart following from its first segment."""
+    fleet.route[row] = route
+    fleet.route_stamp[row] += 1
+    fleet.route_segment[row] = 0
+    fleet.arrived[row] = False

@@ -1,0 +1,380 @@
+"""MISSION phase: the mission state machine of every drone (the paper's §2.1.3, DESIGN.md §5).
+
+Steps: takeoff, cruise, land, pickup, deliver, recharge, idle, each wrapped in ``wait_before`` and
+``wait_after``. A step turns into a route for the guidance layer, payload requests for the payload
+system and charging for the energy model; the step ends on what the physics shows (arrived, slow,
+touching the ground, package joined). This is event logic: one short Python check per drone with
+a running mission per step, with all the flying done by the vectorised layers below.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import esper
+import numpy as np
+
+from ..components.body import FleetSlot, Identity, RigidBody
+from ..components.flight import GuidanceLimits
+from ..components.mission import MissionRuntime
+from ..frames import yaw_rad_from_quat_xyzw
+from ..phases import Phase
+from ..world import StepContext
+from .flight_state import FlightMode, PayloadRequest, PayloadResult, Route, declare_flight_arrays, set_route
+
+LANDED_SPEED_M_S = 0.25        # touching something and slower than this ...
+LANDED_HOLD_S = 0.5            # ... for this long counts as landed
+SETTLED_SPEED_M_S = 0.5        # a step that ends "at" a point also needs the drone slower than this
+GRAB_CLEARANCE_M = 0.10        # hover gap between the airframe's bottom and the package top when grabbing
+GRAB_TOLERANCE_M = 0.12        # position error allowed before grabbing
+PICKUP_SEARCH_RADIUS_M = 30.0
+LAND_BELOW_M = 0.3             # land by aiming this far below the resting height (so touchdown happens)
+STEP_TIMEOUT_S = 600.0
+
+
+class MissionSystem(esper.Processor):
+    """Advance every running mission by one step.
+
+    Phase: MISSION. Reads: fleet pose/velocity, arrived, payload_result, low_battery, soc_frac.
+    Writes: routes (via set_route), flight_mode, payload_request/payload_package, charging,
+    mission_step; MissionRuntime components.
+    """
+
+    phase = Phase.MISSION
+    order = 0
+
+    def process(self, ctx: StepContext) -> None:
+        f = ctx.fleet
+        declare_flight_arrays(f)
+        if "payload_package" not in f.__dict__:
+            f.declare("payload_package", (), object, None)
+        for ent, (ident, slot, rt) in esper.get_components(Identity, FleetSlot, MissionRuntime):
+            if rt.state != "running":
+                continue
+            row = slot.row
+            if f.low_battery[row] and rt.spec.steps[rt.step_index].type not in ("land", "recharge"):
+                self._fail(ctx, ident.name, row, rt, "low_battery")
+                self._begin_emergency_landing(ctx, ent, row)
+                continue
+            self._advance(ctx, ent, ident.name, row, rt)
+            f.mission_step[row] = rt.step_index if rt.state == "running" else -1
+
+    # -- state machine -----------------------------------------------------------------------
+    def _advance(self, ctx: StepContext, ent: int, name: str, row: int, rt: MissionRuntime) -> None:
+        t = ctx.sim_time_s
+        step = rt.spec.steps[rt.step_index]
+        if rt.stage == "wait_before":
+            if t - rt.stage_started_s >= step.wait_before - 1e-9:
+                rt.stage, rt.stage_started_s, rt.scratch = "active", t, {}
+                ctx.services.note(t, name, f"mission step {rt.step_index} ({step.type}) started")
+                error = self._begin(ctx, ent, row, rt, step)
+                if error:
+                    self._fail(ctx, name, row, rt, error)
+            return
+        if rt.stage == "active":
+            if t - rt.stage_started_s > STEP_TIMEOUT_S:
+                self._fail(ctx, name, row, rt, f"{step.type}_timeout")
+                return
+            outcome = self._check(ctx, ent, row, rt, step)
+            if outcome is None:
+                return
+            if outcome != "done":
+                self._fail(ctx, name, row, rt, outcome)
+                return
+            rt.stage, rt.stage_started_s = "wait_after", t
+            ctx.services.note(t, name, f"mission step {rt.step_index} ({step.type}) done")
+        if rt.stage == "wait_after" and t - rt.stage_started_s >= step.wait_after - 1e-9:
+            rt.step_index += 1
+            if rt.step_index >= len(rt.spec.steps):
+                rt.step_index = len(rt.spec.steps) - 1
+                rt.state = "completed"
+                ctx.services.note(t, name, f"mission {rt.spec.name} completed")
+                return
+            rt.stage, rt.stage_started_s, rt.scratch = "wait_before", t, {}
+
+    def _fail(self, ctx: StepContext, name: str, row: int, rt: MissionRuntime, reason: str) -> None:
+        rt.state, rt.reason = "failed", reason
+        ctx.fleet.charging[row] = False
+        ctx.fleet.mission_step[row] = -1
+        ctx.services.note(ctx.sim_time_s, name, f"mission {rt.spec.name} failed at step {rt.step_index}: {reason}")
+        f = ctx.fleet
+        if reason != "overweight" and f.flight_mode[row] == FlightMode.AUTO and f.motors_enabled[row]:
+            _hold_here(f, row)
+
+    # -- begin a step ------------------------------------------------------------------------
+    def _begin(self, ctx: StepContext, ent: int, row: int, rt: MissionRuntime, step: Any) -> str:
+        f = ctx.fleet
+        lim = esper.component_for_entity(ent, GuidanceLimits)
+        spec = rt.spec
+        s = rt.scratch
+        pos = f.pos_enu_m[row].copy()
+        if step.type == "takeoff":
+            if step.waypoints:
+                wp = step.waypoints[0]
+                goal = np.array([wp.x, wp.y, wp.z])
+            else:
+                alt = step.altitude_m if step.altitude_m is not None else lim.takeoff_altitude_m
+                surface = ctx.services.layout.surface_height_m(pos[0], pos[1])
+                goal = np.array([pos[0], pos[1], surface + alt])
+            speed = _speeds(step.waypoints[0] if step.waypoints else None, spec, lim)
+            _arm(f, row)
+            set_route(f, row, _route([pos, goal], [speed, speed], _yaw(step.waypoints[0] if step.waypoints else None)))
+            s["goal"] = goal
+        elif step.type == "cruise":
+            pts, speeds = [pos], []
+            for wp in step.waypoints:
+                pts.append(np.array([wp.x, wp.y, wp.z]))
+                speeds.append(_speeds(wp, spec, lim))
+            if step.pad is not None:
+                pad = ctx.services.layout.pads[step.pad]
+                pts.append(np.array([pad.center_enu_m[0], pad.center_enu_m[1], max(pos[2], pad.center_enu_m[2] + 5.0)]))
+                speeds.append(_speeds(None, spec, lim))
+            speeds.insert(0, speeds[0])
+            _arm(f, row)
+            set_route(f, row, _route(pts, speeds, _yaw(step.waypoints[-1] if step.waypoints else None)))
+            s["goal"] = pts[-1]
+        elif step.type in ("land", "deliver"):
+            if step.type == "deliver" and f.payload_kg[row] <= 0.0:
+                return "nothing_to_deliver"
+            if _landed(ctx, ent, row, s, need_hold=False) and f.flight_mode[row] == FlightMode.DISARMED:
+                s["landed"] = True
+            else:
+                self._begin_landing(ctx, ent, row, rt, step, lim)
+        elif step.type == "pickup":
+            return self._begin_pickup(ctx, ent, row, rt, step, lim)
+        elif step.type == "recharge":
+            s["soc_start"] = float(f.soc_frac[row])
+            if f.flight_mode[row] != FlightMode.DISARMED:
+                self._begin_landing(ctx, ent, row, rt, step, lim)
+            if step.charge_power_w is not None:
+                f.charge_power_w[row] = step.charge_power_w
+        elif step.type == "idle":
+            if f.flight_mode[row] != FlightMode.DISARMED:
+                _hold_here(f, row)
+        return ""
+
+    def _begin_landing(self, ctx: StepContext, ent: int, row: int, rt: MissionRuntime, step: Any,
+                       lim: GuidanceLimits) -> None:
+        f = ctx.fleet
+        pos = f.pos_enu_m[row].copy()
+        if step.waypoints:
+            xy = np.array([step.waypoints[-1].x, step.waypoints[-1].y])
+        elif getattr(step, "pad", None) is not None:
+            xy = np.array(ctx.services.layout.pads[step.pad].center_enu_m[:2])
+        else:
+            xy = pos[:2]
+        body = esper.component_for_entity(ent, RigidBody)
+        below = body.half_extents_m[2] + _carried_height(ctx, ent)
+        surface = ctx.services.layout.surface_height_m(xy[0], xy[1])
+        touch_z = surface + below - LAND_BELOW_M
+        speed = _speeds(step.waypoints[-1] if step.waypoints else None, rt.spec, lim)
+        pts = [pos]
+        if np.hypot(*(xy - pos[:2])) > 1.0:
+            cruise_z = max(pos[2], surface + below + 2.0)
+            pts.append(np.array([xy[0], xy[1], cruise_z]))
+        pts.append(np.array([xy[0], xy[1], touch_z]))
+        _arm(f, row)
+        set_route(f, row, _route(pts, [speed] * len(pts), np.nan))
+        rt.scratch["landing"] = True
+
+    def _begin_pickup(self, ctx: StepContext, ent: int, row: int, rt: MissionRuntime, step: Any,
+                      lim: GuidanceLimits) -> str:
+        f = ctx.fleet
+        pos = f.pos_enu_m[row].copy()
+        centre = np.array([step.waypoints[0].x, step.waypoints[0].y]) if step.waypoints else pos[:2]
+        best = None
+        for pent, (pid, pslot, pbody) in esper.get_components(Identity, FleetSlot, RigidBody):
+            if pid.kind != "package" or (step.package is not None and pid.name != step.package):
+                continue
+            d = float(np.hypot(*(f.pos_enu_m[pslot.row, :2] - centre)))
+            if d <= PICKUP_SEARCH_RADIUS_M and (best is None or d < best[0]):
+                best = (d, pid.name, pslot.row, pbody)
+        if best is None:
+            return "no_package_found" if step.package is None else f"package_not_found:{step.package}"
+        _, pkg_name, pkg_row, pbody = best
+        body = esper.component_for_entity(ent, RigidBody)
+        pkg = f.pos_enu_m[pkg_row]
+        grab_z = pkg[2] + pbody.half_extents_m[2] + GRAB_CLEARANCE_M + body.half_extents_m[2]
+        grab = np.array([pkg[0], pkg[1], grab_z])
+        speed = _speeds(step.waypoints[0] if step.waypoints else None, rt.spec, lim)
+        pts = [pos]
+        if np.hypot(*(grab[:2] - pos[:2])) > 0.3:
+            pts.append(np.array([pos[0], pos[1], max(pos[2], grab_z + 1.0)]))
+            pts.append(np.array([grab[0], grab[1], max(pos[2], grab_z + 1.0)]))
+        pts.append(grab)
+        slow = (min(speed[0], 1.0), min(speed[1], 1.0), min(speed[2], 0.5))
+        _arm(f, row)
+        set_route(f, row, _route(pts, [speed] * (len(pts) - 1) + [slow], np.nan))
+        f.payload_package[row] = pkg_name
+        rt.scratch.update(grab=grab, package=pkg_name, sub="approach")
+        return ""
+
+    def _begin_emergency_landing(self, ctx: StepContext, ent: int, row: int) -> None:
+        f = ctx.fleet
+        if f.flight_mode[row] == FlightMode.DISARMED:
+            return
+        lim = esper.component_for_entity(ent, GuidanceLimits)
+        pos = f.pos_enu_m[row].copy()
+        body = esper.component_for_entity(ent, RigidBody)
+        surface = ctx.services.layout.surface_height_m(pos[0], pos[1])
+        touch = np.array([pos[0], pos[1], surface + body.half_extents_m[2] + _carried_height(ctx, ent) - LAND_BELOW_M])
+        speed = (lim.cruise_speed_m_s, lim.climb_speed_m_s, lim.descent_speed_m_s)
+        set_route(f, row, _route([pos, touch], [speed, speed], np.nan))
+        esper.add_component(ent, _EmergencyLanding())
+
+    # -- check a step ------------------------------------------------------------------------
+    def _check(self, ctx: StepContext, ent: int, row: int, rt: MissionRuntime, step: Any) -> str | None:
+        f = ctx.fleet
+        s = rt.scratch
+        speed = float(np.linalg.norm(f.vel_enu_m_s[row]))
+        if step.type in ("takeoff", "cruise"):
+            return "done" if f.arrived[row] and speed < SETTLED_SPEED_M_S else None
+        if step.type == "land":
+            if s.get("landed") or _landed(ctx, ent, row, s):
+                f.flight_mode[row] = FlightMode.DISARMED
+                set_route(f, row, None)
+                return "done"
+            return None
+        if step.type == "deliver":
+            sub = s.get("sub", "landing")
+            if sub == "landing":
+                if s.get("landed") or _landed(ctx, ent, row, s):
+                    f.flight_mode[row] = FlightMode.DISARMED
+                    set_route(f, row, None)
+                    f.payload_request[row] = PayloadRequest.RELEASE
+                    f.payload_result[row] = PayloadResult.NONE
+                    s["sub"] = "releasing"
+                return None
+            if f.payload_result[row] == PayloadResult.RELEASED:
+                return "done"
+            return None
+        if step.type == "pickup":
+            sub = s["sub"]
+            if sub == "approach":
+                err = f.pos_enu_m[row] - s["grab"]
+                if np.linalg.norm(err) < GRAB_TOLERANCE_M and speed < 0.2:
+                    f.payload_request[row] = PayloadRequest.ATTACH
+                    f.payload_result[row] = PayloadResult.NONE
+                    s["sub"] = "attaching"
+                return None
+            result = int(f.payload_result[row])
+            if result == PayloadResult.NONE:
+                return None
+            f.payload_package[row] = None
+            if result == PayloadResult.ATTACHED:
+                _hold_here(f, row)
+                return "done"
+            if result == PayloadResult.OVERWEIGHT:
+                f.flight_mode[row] = FlightMode.DISARMED
+                set_route(f, row, None)
+                return "overweight"
+            return "no_package_in_reach"
+        if step.type == "recharge":
+            if s.get("landing") and not s.get("landed"):
+                if _landed(ctx, ent, row, s):
+                    s["landed"] = True
+                    f.flight_mode[row] = FlightMode.DISARMED
+                    set_route(f, row, None)
+                return None
+            f.charging[row] = True
+            elapsed = ctx.sim_time_s - s.setdefault("charge_start_s", ctx.sim_time_s)
+            if f.soc_frac[row] >= step.target_soc_frac - 1e-9 or (step.duration_s is not None and elapsed >= step.duration_s):
+                f.charging[row] = False
+                return "done"
+            return None
+        if step.type == "idle":
+            return "done" if ctx.sim_time_s - rt.stage_started_s >= (step.duration_s or 0.0) - 1e-9 else None
+        return f"unknown_step_type:{step.type}"
+
+
+class _EmergencyLanding:
+    """Marker: the drone is landing because its battery ran low (disarms on touchdown)."""
+
+
+class EmergencyLandingSystem(esper.Processor):
+    """Disarm drones that touched down after a low-battery landing.
+
+    Phase: MISSION (order 10).
+    """
+
+    phase = Phase.MISSION
+    order = 10
+
+    def __init__(self) -> None:
+        self._scratch: dict[int, dict[str, Any]] = {}
+
+    def process(self, ctx: StepContext) -> None:
+        for ent, (slot, _) in esper.get_components(FleetSlot, _EmergencyLanding):
+            s = self._scratch.setdefault(ent, {})
+            if _landed(ctx, ent, slot.row, s):
+                ctx.fleet.flight_mode[slot.row] = FlightMode.DISARMED
+                set_route(ctx.fleet, slot.row, None)
+                esper.remove_component(ent, _EmergencyLanding)
+                self._scratch.pop(ent, None)
+
+
+# -- helpers -----------------------------------------------------------------------------------
+def _speeds(wp: Any, spec: Any, lim: GuidanceLimits) -> tuple[float, float, float]:
+    """(cruise, climb, descent) speeds for a waypoint: its own, else the mission's, within the limits."""
+    cruise = wp.cruise_speed if wp is not None and wp.cruise_speed is not None else spec.cruise_speed
+    climb = wp.climb_speed if wp is not None and wp.climb_speed is not None else spec.climb_speed
+    descent = wp.descent_speed if wp is not None and wp.descent_speed is not None else spec.descent_speed
+    return cruise, min(climb, lim.lim_climb_m_s), min(descent, lim.lim_descent_m_s)
+
+
+def _yaw(wp: Any) -> float:
+    return np.deg2rad(wp.yaw_deg) if wp is not None and wp.yaw_deg is not None else np.nan
+
+
+def _route(points: list[np.ndarray], speeds: list[tuple[float, float, float]], yaw_sp_rad: float) -> Route:
+    return Route(np.array(points, dtype=float), np.array(speeds, dtype=float), float(yaw_sp_rad))
+
+
+def _arm(f: Any, row: int) -> None:
+    if f.flight_mode[row] != FlightMode.AUTO:
+        f.flight_mode[row] = FlightMode.AUTO
+
+
+def _hold_here(f: Any, row: int) -> None:
+    """Hover where the drone is (a two-point route of zero length)."""
+    pos = f.pos_enu_m[row].copy()
+    yaw = float(yaw_rad_from_quat_xyzw(f.quat_enu_flu_xyzw[row]))
+    sp = np.array([1.0, 1.0, 1.0])
+    set_route(f, row, Route(np.array([pos, pos]), np.array([sp, sp]), yaw))
+
+
+def _carried_height(ctx: StepContext, ent: int) -> float:
+    """Height of the package hanging under the drone (it adds to the landing height), 0 if none."""
+    carried = _carried(ent)
+    if carried is None:
+        return 0.0
+    return float(2.0 * esper.component_for_entity(carried.package_entity, RigidBody).half_extents_m[2])
+
+
+def _carried(ent: int) -> Any:
+    """What the payload system says drone ``ent`` carries (``Carried`` or None)."""
+    from .payload import PayloadSystem
+    system = esper.get_processor(PayloadSystem)
+    return None if system is None else system.carried.get(ent)
+
+
+def _landed(ctx: StepContext, ent: int, row: int, scratch: dict[str, Any], need_hold: bool = True) -> bool:
+    """True once the drone (or what it carries) has touched something and stayed slow for LANDED_HOLD_S."""
+    f = ctx.fleet
+    body = esper.component_for_entity(ent, RigidBody).body_id
+    touching = ctx.physics.touching(body)
+    carried = _carried_body(ent)
+    if carried is not None:
+        touching |= ctx.physics.touching(carried)
+        touching -= {body, carried}
+    slow = float(np.linalg.norm(f.vel_enu_m_s[row])) < LANDED_SPEED_M_S
+    if touching and slow:
+        since = scratch.setdefault("touch_since_s", ctx.sim_time_s)
+        return (not need_hold) or ctx.sim_time_s - since >= LANDED_HOLD_S
+    scratch.pop("touch_since_s", None)
+    return False
+
+
+def _carried_body(ent: int) -> int | None:
+    carried = _carried(ent)
+    return None if carried is None else esper.component_for_entity(carried.package_entity, RigidBody).body_id

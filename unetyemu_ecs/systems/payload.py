@@ -1,0 +1,118 @@
+"""PAYLOAD_ENERGY phase: join packages to drones with a fixed constraint, and release them.
+
+A pickup does nothing but join the two rigid bodies: the drone's controllers then feel the extra
+mass, the shifted centre of mass and the larger inertia through the physics (the paper's §2.1.1).
+A package heavier than the drone's ``max_payload_kg`` disables its motors while attached.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import esper
+import numpy as np
+
+from ..components.body import FleetSlot, Identity, RigidBody
+from ..components.flight import PayloadBay
+from ..phases import Phase
+from ..world import StepContext
+from .flight_state import PayloadRequest, PayloadResult, declare_flight_arrays
+from .rows import gather_rows
+
+
+@dataclass(frozen=True)
+class Carried:
+    """A package joined to a drone."""
+
+    package: str
+    package_entity: int
+    constraint_id: int
+    mass_kg: float
+
+
+class PayloadSystem(esper.Processor):
+    """Serve attach/release requests of drones with a :class:`PayloadBay`.
+
+    Phase: PAYLOAD_ENERGY (order 10); event-driven: does nothing on steps without requests.
+    Reads: fleet.payload_request, payload_package, poses. Writes: fleet.payload_result, payload_kg,
+    motors_enabled; PyBullet constraints.
+    """
+
+    phase = Phase.PAYLOAD_ENERGY
+    order = 10
+
+    def __init__(self) -> None:
+        self._seen_version = -1
+        self._rows = np.empty(0, dtype=np.intp)
+        self.carried: dict[int, Carried] = {}          # drone entity -> what it carries
+
+    def _gather(self, ctx: StepContext) -> None:
+        declare_flight_arrays(ctx.fleet)
+        ctx.fleet.declare("payload_package", (), object, None)
+        self._rows, self._bays = gather_rows(PayloadBay)
+
+    def process(self, ctx: StepContext) -> None:
+        f = ctx.fleet
+        if f.version != self._seen_version:
+            self._gather(ctx)
+            self._seen_version = f.version
+        r = self._rows
+        if r.size == 0:
+            return
+        pending = np.flatnonzero(f.payload_request[r] != PayloadRequest.NONE)
+        for k in pending.tolist():
+            row = int(r[k])
+            request = int(f.payload_request[row])
+            f.payload_request[row] = PayloadRequest.NONE
+            if request == PayloadRequest.ATTACH:
+                f.payload_result[row] = self._attach(ctx, row, self._bays[k], f.payload_package[row])
+            else:
+                f.payload_result[row] = self._release(ctx, row)
+
+    def _attach(self, ctx: StepContext, row: int, bay: PayloadBay, wanted: str | None) -> int:
+        f = ctx.fleet
+        drone = int(f.entity[row])
+        ident = esper.component_for_entity(drone, Identity)
+        if drone in self.carried:
+            return int(PayloadResult.ATTACHED)
+        body = esper.component_for_entity(drone, RigidBody)
+        bottom_z = f.pos_enu_m[row, 2] - body.half_extents_m[2]
+        taken = {c.package_entity for c in self.carried.values()}
+        best: tuple[float, int, str, RigidBody] | None = None
+        for ent, (pid, slot, pbody) in esper.get_components(Identity, FleetSlot, RigidBody):
+            if pid.kind != "package" or ent in taken or (wanted is not None and pid.name != wanted):
+                continue
+            delta = f.pos_enu_m[slot.row] - f.pos_enu_m[row]
+            horiz = float(np.hypot(delta[0], delta[1]))
+            gap = float(bottom_z - (f.pos_enu_m[slot.row, 2] + pbody.half_extents_m[2]))
+            if horiz <= bay.reach_horizontal_m and -0.05 <= gap <= bay.reach_vertical_m:
+                if best is None or horiz < best[0]:
+                    best = (horiz, ent, pid.name, pbody)
+        if best is None:
+            ctx.services.note(ctx.sim_time_s, ident.name, "pickup: no package within reach")
+            return int(PayloadResult.NOTHING_IN_REACH)
+        _, pkg_ent, pkg_name, pbody = best
+        constraint = ctx.physics.attach_fixed(body.body_id, pbody.body_id)
+        self.carried[drone] = Carried(pkg_name, pkg_ent, constraint, pbody.mass_kg)
+        f.payload_kg[row] = pbody.mass_kg
+        if pbody.mass_kg > bay.max_payload_kg:
+            f.motors_enabled[row] = False
+            ctx.services.note(ctx.sim_time_s, ident.name,
+                              f"pickup {pkg_name}: {pbody.mass_kg:g} kg exceeds max payload "
+                              f"{bay.max_payload_kg:g} kg; motors disabled")
+            return int(PayloadResult.OVERWEIGHT)
+        ctx.services.note(ctx.sim_time_s, ident.name, f"picked up {pkg_name} ({pbody.mass_kg:g} kg)")
+        return int(PayloadResult.ATTACHED)
+
+    def _release(self, ctx: StepContext, row: int) -> int:
+        f = ctx.fleet
+        drone = int(f.entity[row])
+        carried = self.carried.pop(drone, None)
+        if carried is None:
+            return int(PayloadResult.RELEASED)
+        ctx.physics.detach(carried.constraint_id)
+        f.payload_kg[row] = 0.0
+        f.motors_enabled[row] = bool(f.soc_frac[row] > 0.0)   # unless the battery is empty
+        ident = esper.component_for_entity(drone, Identity)
+        ctx.services.note(ctx.sim_time_s, ident.name, f"released {carried.package}")
+        return int(PayloadResult.RELEASED)

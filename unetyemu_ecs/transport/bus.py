@@ -1,0 +1,77 @@
+"""Frozen command messages that cross into the simulation loop, and the inbox that carries them.
+
+Any producer (the Python API, the ROS 2 bridge, MAVLink endpoints, teleop) puts messages in the
+:class:`Inbox`; the COMMANDS phase drains it once per step, keeping for each vehicle and kind only
+the newest message (a teleop stream at 50 Hz must not queue up). Messages use the engine's units and
+frames (ENU metres, radians) and name the vehicle; they are validated again when applied.
+"""
+
+from __future__ import annotations
+
+import queue
+from dataclasses import dataclass
+from typing import Any
+
+
+@dataclass(frozen=True, slots=True)
+class SetTarget:
+    """Fly to one position (AUTO mode); ``yaw_rad`` None keeps the heading, ``speed_m_s`` None = default."""
+
+    vehicle: str
+    pos_enu_m: tuple[float, float, float]
+    yaw_rad: float | None
+    speed_m_s: float | None
+    kind: str = "target"
+
+
+@dataclass(frozen=True, slots=True)
+class LoadMission:
+    """Replace the vehicle's mission with ``mission`` (a validated MissionSpec) and start it."""
+
+    vehicle: str
+    mission: Any
+    kind: str = "mission"
+
+
+@dataclass(frozen=True, slots=True)
+class Teleop:
+    """Manual sticks ``[throttle, pitch, roll, yaw]`` in [-1, 1]; switches the drone to MANUAL."""
+
+    vehicle: str
+    stick: tuple[float, float, float, float]
+    kind: str = "teleop"
+
+
+@dataclass(frozen=True, slots=True)
+class Arm:
+    """Arm or disarm the motors."""
+
+    vehicle: str
+    armed: bool
+    kind: str = "arm"
+
+
+Command = SetTarget | LoadMission | Teleop | Arm
+
+
+class Inbox:
+    """Thread-safe queue of commands for the simulation loop."""
+
+    def __init__(self) -> None:
+        self._q: queue.SimpleQueue[Command] = queue.SimpleQueue()
+
+    def put(self, msg: Command) -> None:
+        self._q.put(msg)
+
+    def drain_latest(self) -> list[Command]:
+        """Take everything queued; keep the newest per (vehicle, kind), in arrival order of those."""
+        latest: dict[tuple[str, str], tuple[int, Command]] = {}
+        n = 0
+        while True:
+            try:
+                msg = self._q.get_nowait()
+            except queue.Empty:
+                break
+            latest[(msg.vehicle, msg.kind)] = (n, msg)
+            n += 1
+        return [m for _, m in sorted(latest.values(), key=lambda nm: nm[0])]
