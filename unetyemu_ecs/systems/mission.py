@@ -149,8 +149,8 @@ class MissionSystem(esper.Processor):
             if step.charge_power_w is not None:
                 f.charge_power_w[row] = step.charge_power_w
         elif step.type == "idle":
-            if f.flight_mode[row] != FlightMode.DISARMED:
-                _hold_here(f, row)
+            if f.flight_mode[row] != FlightMode.DISARMED and f.route[row] is None:
+                _hold_here(f, row)     # otherwise keep converging on the last target
         return ""
 
     def _begin_landing(self, ctx: StepContext, ent: int, row: int, rt: MissionRuntime, step: Any,

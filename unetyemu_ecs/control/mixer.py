@@ -1,0 +1,83 @@
+"""X-quadrotor motor mixing with attitude-priority desaturation, vectorised over a fleet.
+
+The mix is the paper's eq. 2 (after Mueller & D'Andrea 2014)::
+
+    FL = T - p + r - y     FR = T - p - r + y     BR = T + p - r - y     BL = T + p + r + y
+
+in normalised units (fractions of F_max, the torque commands scaled by 1/2 so that a command of 1
+at mid throttle drives one side to full and the other to zero). Unlike the reference
+implementation, which let one motor reach 4 x F_max, every motor is kept in [0, 1] the way PX4's
+mixer does it: roll/pitch first (scaled down only if their spread alone exceeds the range), then
+the collective is shifted as little as needed, and yaw gives way first.
+
+Body frame FLU, motor order FL, FR, BR, BL. Positive roll = right side down (more thrust on the
+left motors), positive pitch = nose down (more thrust at the back), positive yaw = CCW (more thrust
+on the motors whose reaction torque is +z: FR and BL, which spin clockwise).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+MOTOR_NAMES = ("FL", "FR", "BR", "BL")
+
+# columns: roll, pitch, yaw (paper eq. 2 with r, p, y)
+MIX_X = 0.5 * np.array([
+    [+1.0, -1.0, -1.0],   # FL
+    [-1.0, -1.0, +1.0],   # FR
+    [-1.0, +1.0, -1.0],   # BR
+    [+1.0, +1.0, +1.0],   # BL
+])
+
+# reaction torque on the body about +z per unit thrust (FL, BR spin CCW seen from above; FR, BL CW)
+SPIN_REACTION_SIGN = np.array([-1.0, +1.0, -1.0, +1.0])
+
+_MOTOR_DIRS_FLU = np.array([[+1.0, +1.0], [+1.0, -1.0], [-1.0, -1.0], [-1.0, +1.0]]) / np.sqrt(2.0)
+
+
+def motor_positions_flu_m(arm_length_m: np.ndarray) -> np.ndarray:
+    """Motor hub positions w.r.t. the centre of mass, FLU [m]: (N, 4, 3) for arm lengths (N,)."""
+    arm = np.asarray(arm_length_m, dtype=float).reshape(-1)
+    out = np.zeros((arm.size, 4, 3))
+    out[:, :, :2] = arm[:, None, None] * _MOTOR_DIRS_FLU[None]
+    return out
+
+
+def mix_x_quad(thrust_frac: np.ndarray, torque_cmd: np.ndarray) -> np.ndarray:
+    """Return motor thrust fractions (N, 4) in [0, 1] (FL, FR, BR, BL).
+
+    Parameters
+    ----------
+    thrust_frac : (N,) collective thrust as a fraction of 4 F_max (clipped to [0, 1])
+    torque_cmd : (N, 3) normalised [roll, pitch, yaw] commands
+
+    A NaN in a drone's inputs zeroes that drone's command (motors off) rather than reaching the
+    motors.
+    """
+    thrust = np.asarray(thrust_frac, dtype=float).reshape(-1).copy()
+    torque = np.asarray(torque_cmd, dtype=float).reshape(-1, 3).copy()
+    bad = ~np.isfinite(thrust) | ~np.all(np.isfinite(torque), axis=1)
+    thrust[bad] = 0.0
+    torque[bad] = 0.0
+    torque = np.clip(torque, -1e6, 1e6)
+    thrust = np.clip(thrust, 0.0, 1.0)
+
+    rp = torque[:, :2] @ MIX_X[:, :2].T                       # (N, 4) roll/pitch differential
+    yw = torque[:, 2:3] * MIX_X[:, 2][None, :]                # (N, 4) yaw differential
+
+    # 1. roll/pitch alone must fit in the [0, 1] range: scale down uniformly if their spread is > 1
+    spread = rp.max(axis=1) - rp.min(axis=1)
+    rp *= np.where(spread > 1.0, 1.0 / np.maximum(spread, 1e-12), 1.0)[:, None]
+    # 2. shift the collective as little as needed so that thrust + rp lies in [0, 1]
+    lo = -rp.min(axis=1)                                       # lowest admissible collective
+    hi = 1.0 - rp.max(axis=1)                                  # highest admissible collective
+    thrust = np.clip(thrust, lo, hi)
+    base = thrust[:, None] + rp                                # (N, 4) in [0, 1]
+    # 3. yaw with the largest scale in [0, 1] that keeps every motor in [0, 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        room_up = np.where(yw > 0.0, (1.0 - base) / yw, np.inf)
+        room_dn = np.where(yw < 0.0, (0.0 - base) / yw, np.inf)
+    scale = np.clip(np.minimum(room_up.min(axis=1), room_dn.min(axis=1)), 0.0, 1.0)
+    out = base + scale[:, None] * yw
+    # 4. numerical safety only
+    return np.clip(out, 0.0, 1.0)

@@ -1,0 +1,97 @@
+"""Layer 3 (the paper's eq. 3): position -> velocity -> acceleration -> tilt, and heading -> yaw rate.
+
+A cascade of P (position), PI (velocity) and a kinematic tilt mapping (Faessler et al. 2017,
+Chovanova et al. 2014), vectorised over a fleet. World ENU; yaw 0 = east, counter-clockwise;
+positive pitch = nose down (accelerates forward), positive roll = right side down (accelerates
+right). Every gain may be a scalar or an (N,) array.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Annotated
+
+import numpy as np
+
+from ..config.schema import Ge, Gt
+from ..units import GRAVITY_M_S2, wrap_angle_rad
+
+
+@dataclass(frozen=True, kw_only=True)
+class GuidanceGains:
+    """Layer-3 gains (world-file key ``position_controller``); ours, tuned at 240 Hz for the presets."""
+
+    gain_pos_p: Annotated[float, Gt(0.0)] = 1.0          # [1/s] position error -> velocity
+    gain_vel_p: Annotated[float, Gt(0.0)] = 2.0          # [1/s] velocity error -> acceleration
+    gain_vel_i: Annotated[float, Ge(0.0)] = 0.3          # [1/s^2]
+    lim_vel_int_m_s2: Annotated[float, Ge(0.0)] = 2.0    # clamp on the integral's acceleration
+    gain_alt_p: Annotated[float, Gt(0.0)] = 1.2          # [1/s] altitude error -> vertical speed
+    gain_yaw_p: Annotated[float, Gt(0.0)] = 2.0          # [1/s] heading error -> yaw rate
+    lim_decel_m_s2: Annotated[float, Gt(0.0)] = 2.5      # braking that sizes the approach speed
+
+
+def position_to_velocity_sp(pos_sp_enu_m: np.ndarray, pos_enu_m: np.ndarray, dist_to_go_m: np.ndarray,
+                            lim_speed_h_m_s: np.ndarray, lim_climb_m_s: np.ndarray, lim_descent_m_s: np.ndarray,
+                            gains: GuidanceGains) -> np.ndarray:
+    """Velocity setpoint (N, 3) [m/s], ENU.
+
+    Horizontally toward ``pos_sp`` at ``min(lim_speed_h, gain_pos_p |d_h|, sqrt(2 lim_decel
+    dist_to_go))``: the square-root profile brakes for the final point along the route
+    (``dist_to_go``), so the drone stops there without overshoot. Vertically
+    ``clip(gain_alt_p dz, -lim_descent, +lim_climb)``.
+    """
+    delta = pos_sp_enu_m - pos_enu_m
+    dist_h = np.linalg.norm(delta[:, :2], axis=1)
+    speed = np.minimum(np.minimum(lim_speed_h_m_s, gains.gain_pos_p * dist_h),
+                       np.sqrt(2.0 * gains.lim_decel_m_s2 * np.maximum(dist_to_go_m, 0.0)))
+    direction = np.where(dist_h[:, None] > 1e-9, delta[:, :2] / np.maximum(dist_h, 1e-9)[:, None], 0.0)
+    vel = np.empty_like(delta)
+    vel[:, :2] = direction * speed[:, None]
+    vel[:, 2] = np.clip(gains.gain_alt_p * delta[:, 2], -lim_descent_m_s, lim_climb_m_s)
+    return vel
+
+
+def velocity_to_accel_sp(vel_sp_enu_m_s: np.ndarray, vel_enu_m_s: np.ndarray, vel_int: np.ndarray, dt_s: float,
+                         lim_tilt_rad: np.ndarray, gains: GuidanceGains) -> tuple[np.ndarray, np.ndarray]:
+    """Horizontal acceleration setpoint (N, 2) [m/s^2], ENU, and the new velocity integral (N, 2).
+
+    PI on the horizontal velocity error, limited to ``g tan(lim_tilt)`` in magnitude (direction
+    kept); the integral does not grow while the output is limited (anti-windup).
+    """
+    err = vel_sp_enu_m_s[:, :2] - vel_enu_m_s[:, :2]
+    lim_int = gains.lim_vel_int_m_s2 / np.maximum(gains.gain_vel_i, 1e-12)
+    trial = vel_int + err * dt_s
+    trial_norm = np.linalg.norm(trial, axis=1)
+    trial *= np.minimum(1.0, lim_int / np.maximum(trial_norm, 1e-12))[:, None]
+    acc = gains.gain_vel_p * err + gains.gain_vel_i * trial
+    lim_acc = GRAVITY_M_S2 * np.tan(lim_tilt_rad)
+    norm = np.linalg.norm(acc, axis=1)
+    limited = norm > lim_acc
+    acc *= np.where(limited, lim_acc / np.maximum(norm, 1e-12), 1.0)[:, None]
+    new_int = np.where(limited[:, None], vel_int, trial)
+    return acc, new_int
+
+
+def accel_to_tilt_sp(acc_sp_h_enu_m_s2: np.ndarray, yaw_rad: np.ndarray, lim_tilt_rad: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Roll and pitch setpoints (N,) [rad] that produce a horizontal acceleration in ENU.
+
+    The acceleration is rotated into the heading frame (forward, left); ``pitch = atan(a_fwd / g)``
+    and ``roll = atan(-a_left cos(pitch) / g)``. The total tilt never exceeds ``lim_tilt``.
+    """
+    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
+    a_fwd = c * acc_sp_h_enu_m_s2[:, 0] + s * acc_sp_h_enu_m_s2[:, 1]
+    a_left = -s * acc_sp_h_enu_m_s2[:, 0] + c * acc_sp_h_enu_m_s2[:, 1]
+    pitch = np.arctan(a_fwd / GRAVITY_M_S2)
+    roll = np.arctan(-a_left * np.cos(pitch) / GRAVITY_M_S2)
+    # total tilt angle of the thrust axis: cos(tilt) = cos(roll) cos(pitch)
+    tilt = np.arccos(np.clip(np.cos(roll) * np.cos(pitch), -1.0, 1.0))
+    k = np.where(tilt > lim_tilt_rad, lim_tilt_rad / np.maximum(tilt, 1e-12), 1.0)
+    return roll * k, pitch * k
+
+
+def heading_to_yaw_rate_sp(yaw_sp_rad: np.ndarray, yaw_rad: np.ndarray, lim_yaw_rate_rad_s: np.ndarray,
+                           gains: GuidanceGains) -> np.ndarray:
+    """Yaw-rate setpoint (N,) [rad/s] turning the shortest way to ``yaw_sp`` (NaN = hold: 0)."""
+    err = wrap_angle_rad(np.nan_to_num(yaw_sp_rad - yaw_rad, nan=0.0))
+    return np.clip(gains.gain_yaw_p * err, -lim_yaw_rate_rad_s, lim_yaw_rate_rad_s)
