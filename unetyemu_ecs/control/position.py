@@ -25,7 +25,6 @@ class GuidanceGains:
     gain_vel_p: Annotated[float, Gt(0.0)] = 2.0          # [1/s] velocity error -> acceleration
     gain_vel_i: Annotated[float, Ge(0.0)] = 0.3          # [1/s^2]
     lim_vel_int_m_s2: Annotated[float, Ge(0.0)] = 2.0    # clamp on the integral's acceleration
-    gain_alt_p: Annotated[float, Gt(0.0)] = 1.2          # [1/s] altitude error -> vertical speed
     gain_yaw_p: Annotated[float, Gt(0.0)] = 2.0          # [1/s] heading error -> yaw rate
     lim_decel_m_s2: Annotated[float, Gt(0.0)] = 2.5      # braking that sizes the approach speed
 
@@ -33,22 +32,26 @@ class GuidanceGains:
 def position_to_velocity_sp(pos_sp_enu_m: np.ndarray, pos_enu_m: np.ndarray, dist_to_go_m: np.ndarray,
                             lim_speed_h_m_s: np.ndarray, lim_climb_m_s: np.ndarray, lim_descent_m_s: np.ndarray,
                             gains: GuidanceGains) -> np.ndarray:
-    """Velocity setpoint (N, 3) [m/s], ENU.
+    """Velocity setpoint (N, 3) [m/s], ENU, along the line of sight to ``pos_sp``.
 
-    Horizontally toward ``pos_sp`` at ``min(lim_speed_h, gain_pos_p |d_h|, sqrt(2 lim_decel
-    dist_to_go))``: the square-root profile brakes for the final point along the route
-    (``dist_to_go``), so the drone stops there without overshoot. Vertically
-    ``clip(gain_alt_p dz, -lim_descent, +lim_climb)``.
+    The direction is ``pos_sp - pos`` (for pure pursuit, the virtual target a lead distance ahead);
+    the speed is ``min(gain_pos_p d, sqrt(2 lim_decel d))`` with ``d = dist_to_go`` the distance
+    still to fly to the final point (so a nearby virtual target does not cap the cruise speed, and
+    the square-root profile brakes for the end without overshoot), then scaled down so that the
+    horizontal part stays within ``lim_speed_h`` and the vertical part within the climb/descent
+    limits. Because the whole vector is scaled, a climb leg with a small sideways error asks for
+    a small sideways speed (no cross-track gain blow-up).
     """
     delta = pos_sp_enu_m - pos_enu_m
-    dist_h = np.linalg.norm(delta[:, :2], axis=1)
-    speed = np.minimum(np.minimum(lim_speed_h_m_s, gains.gain_pos_p * dist_h),
-                       np.sqrt(2.0 * gains.lim_decel_m_s2 * np.maximum(dist_to_go_m, 0.0)))
-    direction = np.where(dist_h[:, None] > 1e-9, delta[:, :2] / np.maximum(dist_h, 1e-9)[:, None], 0.0)
-    vel = np.empty_like(delta)
-    vel[:, :2] = direction * speed[:, None]
-    vel[:, 2] = np.clip(gains.gain_alt_p * delta[:, 2], -lim_descent_m_s, lim_climb_m_s)
-    return vel
+    dist = np.linalg.norm(delta, axis=1)
+    unit = np.where(dist[:, None] > 1e-9, delta / np.maximum(dist, 1e-9)[:, None], 0.0)
+    d_go = np.maximum(dist_to_go_m, dist)
+    speed = np.minimum(gains.gain_pos_p * d_go, np.sqrt(2.0 * gains.lim_decel_m_s2 * d_go))
+    h = np.linalg.norm(unit[:, :2], axis=1)
+    v_lim = np.where(unit[:, 2] >= 0.0, lim_climb_m_s, lim_descent_m_s)
+    speed = np.minimum(speed, np.where(h > 1e-9, lim_speed_h_m_s / np.maximum(h, 1e-9), np.inf))
+    speed = np.minimum(speed, np.where(np.abs(unit[:, 2]) > 1e-9, v_lim / np.maximum(np.abs(unit[:, 2]), 1e-9), np.inf))
+    return unit * speed[:, None]
 
 
 def velocity_to_accel_sp(vel_sp_enu_m_s: np.ndarray, vel_enu_m_s: np.ndarray, vel_int: np.ndarray, dt_s: float,

@@ -106,16 +106,8 @@ class GuidanceSystem(esper.Processor):
         f.cross_track_m[r] = res.cross_track_m
         f.arrived[r] = res.dist_to_final_m < self._arrival[k]
 
-        # The virtual target sits a lead distance ahead, so its distance must not cap the speed:
-        # stretch the line of sight to the distance still to fly along the route (horizontal part
-        # only; a vertical leg keeps zero horizontal speed).
-        delta = res.target_enu_m - pos
-        dist = np.linalg.norm(delta, axis=1)
-        scale = np.maximum(1.0, res.dist_to_go_m / np.maximum(dist, 1e-6))
-        pos_sp = res.target_enu_m.copy()
-        pos_sp[:, :2] = pos[:, :2] + delta[:, :2] * scale[:, None]
         gains = take_params(self._gains, k)
-        vel_sp = position_to_velocity_sp(pos_sp, pos, res.dist_to_go_m, res.speed_lims_m_s[:, 0],
+        vel_sp = position_to_velocity_sp(res.target_enu_m, pos, res.dist_to_go_m, res.speed_lims_m_s[:, 0],
                                          np.minimum(res.speed_lims_m_s[:, 1], self._lim_climb[k]),
                                          np.minimum(res.speed_lims_m_s[:, 2], self._lim_descent[k]), gains)
         f.vel_sp_enu_m_s[r] = vel_sp
