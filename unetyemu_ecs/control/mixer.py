@@ -74,7 +74,7 @@ def mix_x_quad(thrust_frac: np.ndarray, torque_cmd: np.ndarray) -> np.ndarray:
     thrust = np.clip(thrust, lo, hi)
     base = thrust[:, None] + rp                                # (N, 4) in [0, 1]
     # 3. yaw with the largest scale in [0, 1] that keeps every motor in [0, 1]
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         room_up = np.where(yw > 0.0, (1.0 - base) / yw, np.inf)
         room_dn = np.where(yw < 0.0, (0.0 - base) / yw, np.inf)
     scale = np.clip(np.minimum(room_up.min(axis=1), room_dn.min(axis=1)), 0.0, 1.0)

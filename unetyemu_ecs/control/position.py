@@ -80,17 +80,20 @@ def accel_to_tilt_sp(acc_sp_h_enu_m_s2: np.ndarray, yaw_rad: np.ndarray, lim_til
     """Roll and pitch setpoints (N,) [rad] that produce a horizontal acceleration in ENU.
 
     The acceleration is rotated into the heading frame (forward, left); ``pitch = atan(a_fwd / g)``
-    and ``roll = atan(-a_left cos(pitch) / g)``. The total tilt never exceeds ``lim_tilt``.
+    and ``roll = atan(-a_left cos(pitch) / g)`` point the thrust axis exactly along
+    ``(a_fwd, a_left, g)``, so the total tilt is ``atan(|a| / g)``: limiting ``|a|`` to
+    ``g tan(lim_tilt)`` (direction kept) keeps the tilt within ``lim_tilt``.
     """
+    acc = np.asarray(acc_sp_h_enu_m_s2, dtype=float)
+    norm = np.linalg.norm(acc, axis=1)
+    lim_acc = GRAVITY_M_S2 * np.tan(lim_tilt_rad)
+    acc = acc * np.where(norm > lim_acc, lim_acc / np.maximum(norm, 1e-12), 1.0)[:, None]
     c, s = np.cos(yaw_rad), np.sin(yaw_rad)
-    a_fwd = c * acc_sp_h_enu_m_s2[:, 0] + s * acc_sp_h_enu_m_s2[:, 1]
-    a_left = -s * acc_sp_h_enu_m_s2[:, 0] + c * acc_sp_h_enu_m_s2[:, 1]
+    a_fwd = c * acc[:, 0] + s * acc[:, 1]
+    a_left = -s * acc[:, 0] + c * acc[:, 1]
     pitch = np.arctan(a_fwd / GRAVITY_M_S2)
     roll = np.arctan(-a_left * np.cos(pitch) / GRAVITY_M_S2)
-    # total tilt angle of the thrust axis: cos(tilt) = cos(roll) cos(pitch)
-    tilt = np.arccos(np.clip(np.cos(roll) * np.cos(pitch), -1.0, 1.0))
-    k = np.where(tilt > lim_tilt_rad, lim_tilt_rad / np.maximum(tilt, 1e-12), 1.0)
-    return roll * k, pitch * k
+    return roll, pitch
 
 
 def heading_to_yaw_rate_sp(yaw_sp_rad: np.ndarray, yaw_rad: np.ndarray, lim_yaw_rate_rad_s: np.ndarray,

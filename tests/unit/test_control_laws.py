@@ -1,0 +1,122 @@
+"""Layer-2 and layer-3 laws without esper or PyBullet: hover, tilt compensation, windup, limits, signs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from unetyemu_ecs.control.attitude import (StabilizerGains, attitude_to_torque_cmd, manual_to_setpoints,
+                                           vertical_speed_to_thrust_frac)
+from unetyemu_ecs.control.position import (GuidanceGains, accel_to_tilt_sp, heading_to_yaw_rate_sp,
+                                           position_to_velocity_sp, velocity_to_accel_sp)
+
+G = 9.81
+SG = StabilizerGains()
+GG = GuidanceGains()
+
+
+def one(x):
+    return np.array([x], dtype=float)
+
+
+def test_level_hover_asks_for_exactly_the_hover_thrust_fraction():
+    thrust, integ = vertical_speed_to_thrust_frac(one(0), one(0), one(0), one(0), one(0.6), one(1.0), 1 / 240, SG)
+    assert_allclose(thrust, 0.6)
+    assert_allclose(integ, 0.0)
+
+
+def test_tilt_compensation_divides_by_cos_tilt():
+    tilt = np.deg2rad(30.0)
+    thrust, _ = vertical_speed_to_thrust_frac(one(0), one(0), one(0), one(0), one(0.5), one(np.cos(tilt)), 0.01, SG)
+    assert_allclose(thrust, 0.5 / np.cos(tilt))
+
+
+def test_integrator_takes_up_an_extra_load_in_a_closed_loop():
+    # GIVEN an 8 kg drone (F_max 32 N/motor) with 2.5 kg of load its parameters do not know about
+    m_nominal, m_true, f_max4, dt = 8.0, 10.5, 4 * 32.0, 1 / 240
+    hover = m_nominal * G / f_max4
+    vz, integ, acc = 0.0, 0.0, 0.0
+    for _ in range(240 * 20):
+        thrust, integ = vertical_speed_to_thrust_frac(one(0), one(vz), one(acc), one(integ), one(hover), one(1.0), dt, SG)
+        acc = float(thrust[0]) * f_max4 / m_true - G
+        vz += acc * dt
+        integ = float(integ[0])
+    # THEN the vertical speed error vanishes and the thrust carries the true weight
+    assert abs(vz) < 1e-3
+    assert_allclose(float(thrust[0]) * f_max4, m_true * G, rtol=1e-3)
+
+
+def test_integral_does_not_wind_up_while_the_output_is_saturated():
+    integ = np.zeros(1)
+    for _ in range(240 * 10):
+        thrust, integ = vertical_speed_to_thrust_frac(one(8.0), one(0), one(0), integ, one(0.6), one(1.0), 1 / 240, SG)
+        assert thrust[0] <= 1.0
+    # saturated from the start: the integral never grew
+    assert abs(integ[0]) < 0.05
+
+
+def test_rate_pd_pushes_toward_the_setpoint_and_damps_the_rate():
+    torque = attitude_to_torque_cmd(one(0.1), one(-0.1), one(0.5), one(0.0), one(0.0), np.zeros((1, 3)), SG)
+    assert torque[0, 0] > 0 and torque[0, 1] < 0 and torque[0, 2] > 0
+    damping = attitude_to_torque_cmd(one(0), one(0), one(0), one(0), one(0), np.array([[1.0, 1.0, 0.0]]), SG)
+    assert_allclose(damping[0, :2], -SG.gain_rate_d)
+
+
+def test_sticks_map_to_setpoints_with_the_documented_signs_and_limits():
+    stick = np.array([[1.0, 1.0, 1.0, 1.0], [-1.0, -0.5, -0.5, -1.0], [0, 0, 0, 0]])
+    vz, roll, pitch, yaw_rate = manual_to_setpoints(stick, np.full(3, 0.7), np.full(3, 8.0), np.full(3, 5.0),
+                                                    np.full(3, np.pi / 2))
+    assert_allclose(vz, [8.0, -5.0, 0.0])
+    assert_allclose(pitch, [0.7, -0.35, 0.0])     # +1 = forward = nose down
+    assert_allclose(roll, [0.7, -0.35, 0.0])      # +1 = right = right side down
+    assert_allclose(yaw_rate, [np.pi / 2, -np.pi / 2, 0.0])
+
+
+def test_velocity_setpoint_cruises_at_the_limit_far_away_and_brakes_as_sqrt_2ad_near_the_end():
+    pos = np.zeros((2, 3))
+    target = np.array([[3.0, 0, 0], [1.0, 0, 0]])
+    vel = position_to_velocity_sp(target, pos, np.array([100.0, 1.0]), np.full(2, 10.0), np.full(2, 8.0),
+                                  np.full(2, 5.0), GG)
+    assert_allclose(vel[0], [10.0, 0, 0])
+    assert_allclose(vel[1], [min(GG.gain_pos_p * 1.0, np.sqrt(2 * GG.lim_decel_m_s2 * 1.0)), 0, 0])
+
+
+def test_climb_and_descent_limits_scale_the_whole_line_of_sight():
+    pos = np.zeros((2, 3))
+    target = np.array([[0.3, 0, 3.0], [0, 0, -3.0]])
+    vel = position_to_velocity_sp(target, pos, np.full(2, 50.0), np.full(2, 10.0), np.full(2, 3.0), np.full(2, 1.5), GG)
+    assert_allclose(vel[0, 2], 3.0)
+    assert_allclose(vel[0, 0], 0.3)          # small sideways error -> small sideways speed
+    assert_allclose(vel[1], [0, 0, -1.5])
+
+
+def test_horizontal_acceleration_never_exceeds_g_tan_max_tilt(rng):
+    vel_sp = rng.uniform(-100, 100, (200, 3))
+    lim = rng.uniform(0.2, 0.8, 200)
+    acc, _ = velocity_to_accel_sp(vel_sp, np.zeros((200, 3)), np.zeros((200, 2)), 1 / 240, lim, GG)
+    assert np.all(np.linalg.norm(acc, axis=1) <= G * np.tan(lim) + 1e-9)
+    roll, pitch = accel_to_tilt_sp(acc * 3.0, rng.uniform(-np.pi, np.pi, 200), lim)
+    tilt = np.arccos(np.cos(roll) * np.cos(pitch))
+    assert np.all(tilt <= lim + 1e-9)
+
+
+@pytest.mark.parametrize("yaw, acc, expect", [
+    (0.0, [2.0, 0.0], "pitch+"),            # facing east, accelerate east: nose down
+    (0.0, [0.0, 2.0], "roll-"),             # facing east, accelerate north (left): left side down
+    (np.pi / 2, [0.0, 2.0], "pitch+"),      # facing north, accelerate north
+    (np.pi / 2, [2.0, 0.0], "roll+"),       # facing north, accelerate east (right): right side down
+])
+def test_tilt_direction_follows_the_acceleration(yaw, acc, expect):
+    roll, pitch = accel_to_tilt_sp(np.array([acc]), one(yaw), one(0.7))
+    value = {"pitch": pitch[0], "roll": roll[0]}[expect[:-1]]
+    other = {"pitch": roll[0], "roll": pitch[0]}[expect[:-1]]
+    assert (value > 0) == (expect[-1] == "+") and abs(value) > 0.1
+    assert abs(other) < 1e-9
+
+
+def test_yaw_rate_turns_the_short_way_across_180_and_respects_its_limit():
+    rate = heading_to_yaw_rate_sp(np.array([np.deg2rad(170), np.deg2rad(-170), np.nan]),
+                                  np.array([np.deg2rad(-170), np.deg2rad(170), 0.3]), np.full(3, np.pi / 2), GG)
+    assert rate[0] < 0 and rate[1] > 0 and rate[2] == 0.0
+    assert np.all(np.abs(rate) <= np.pi / 2)
