@@ -306,3 +306,67 @@ def test_bad_api_commands_raise_and_change_nothing():
             sim.set_target("ghost", 0, 0, 10)
         sim.step(10)
         assert sim.fleet.flight_mode[sim.row("d1")] == FlightMode.DISARMED
+
+
+def test_yaw_comes_from_rotor_reaction_torques_and_reaches_the_commanded_heading():
+    with Simulation(load_world_text(flat_world(drone("d1")))) as sim:
+        hover(sim, "d1", 10.0, 8.0)
+        sim.set_target("d1", 0.0, 0.0, 10.0, yaw_deg=90.0)
+        sim.run(duration=2.0)
+        row = sim.row("d1")
+        # 90° -> -150° is the short way round counter-clockwise (+120°): the CW-spinning motors
+        # (FR, BL) push harder than the CCW ones (FL, BR) so that their reaction torque turns the body CCW
+        sim.set_target("d1", 0.0, 0.0, 10.0, yaw_deg=-150.0)
+        sim.step(24)
+        thrust = sim.fleet.motor_thrust_n[row]
+        assert thrust[1] + thrust[3] > thrust[0] + thrust[2]
+        assert sim.fleet.rate_enu_rad_s[row][2] > 0.0          # and the body does turn CCW
+        sim.run(duration=8.0)
+        q = sim.attitude_enu_flu_xyzw("d1")
+        yaw = math.degrees(math.atan2(2 * (q[3] * q[2] + q[0] * q[1]), 1 - 2 * (q[1] ** 2 + q[2] ** 2)))
+        assert abs(yaw - (-150.0)) < 2.0
+        assert abs(sim.position_enu_m("d1")[2] - 10.0) < 0.1
+
+
+def test_motor_lag_makes_applied_thrust_follow_the_command_as_a_first_order_system():
+    comps = "      motors: {motor_tau_s: 0.05}\n"
+    with Simulation(load_world_text(flat_world(drone("d1", components=comps)))) as sim:
+        sim.set_target("d1", 0.0, 0.0, 10.0)
+        sim.step(2)          # step 0 applies the command, step 1 runs the first lagged motor update
+        row = sim.row("d1")
+        cmd = sim.fleet.motor_thrust_cmd_n[row].copy()
+        applied = sim.fleet.motor_thrust_n[row].copy()
+        alpha = 1.0 - math.exp(-sim.dt_s / 0.05)
+        assert np.all(cmd > 0)
+        assert np.all(applied < cmd)
+        # two updates from zero: 1 - (1 - alpha)^2 of a (nearly) constant command
+        assert applied.sum() == pytest.approx(cmd.sum() * (1 - (1 - alpha) ** 2), rel=0.05)
+
+
+def test_several_pickups_and_deliveries_in_one_run():
+    packages = "\n".join([
+        "  - {name: p1, mass_kg: 1.0, size_m: [0.3, 0.3, 0.3], pose: {position_m: [1.0, 0.0, 0.25]}}",
+        "  - {name: p2, mass_kg: 2.0, size_m: [0.3, 0.3, 0.3], pose: {position_m: [31.0, 0.0, 0.25]}}"])
+    mission = """
+      mission:
+        name: swap
+        cruise_speed: 6.0
+        steps:
+          - {type: pickup, package: p1}
+          - {type: takeoff, altitude_m: 6.0}
+          - {type: cruise, waypoints: [{x: 30.0, y: 5.0, z: 6.0}]}
+          - {type: deliver, waypoints: [{x: 30.0, y: 5.0, z: 0.0}]}
+          - {type: pickup, package: p2}
+          - {type: takeoff, altitude_m: 6.0}
+          - {type: cruise, waypoints: [{x: 0.0, y: 5.0, z: 6.0}]}
+          - {type: deliver, waypoints: [{x: 0.0, y: 5.0, z: 0.0}]}
+"""
+    with Simulation(load_world_text(flat_world(drone("d1", components=mission), packages=packages))) as sim:
+        sim.run(until=120.0)
+        status = sim.mission_status("d1")
+        assert status["state"] == "completed", sim.events
+        # each package was carried to the other side and set down there
+        p1, p2 = sim.position_enu_m("p1"), sim.position_enu_m("p2")
+        assert np.linalg.norm(p1[:2] - [30.0, 5.0]) < 1.0 and p1[2] < 0.5
+        assert np.linalg.norm(p2[:2] - [0.0, 5.0]) < 1.0 and p2[2] < 0.5
+        assert sim.fleet.payload_kg[sim.row("d1")] == 0.0
