@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import shutil
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 from ..conftest import REPO_ROOT, WORLDS
@@ -89,3 +92,36 @@ def test_plugins_lists_the_builtin_components():
     res = unetyemu("plugins")
     assert res.returncode == 0
     assert "aero_drag" in res.stdout and "unetyemu_ecs.systems:" in res.stdout
+
+
+def test_ctrl_c_ends_the_run_cleanly_keeping_logs_and_printing_the_summary(tmp_path):
+    # GIVEN the main scenario running in real time (so that it is still running when interrupted)
+    out = tmp_path / "run"
+    exe = shutil.which("unetyemu")
+    cmd = [exe] if exe else [sys.executable, "-m", "unetyemu_ecs.cli"]
+    proc = subprocess.Popen([*cmd, "run", str(WORLDS / "urban_delivery.yaml"), "--rate", "1", "--quiet",
+                             "--out", str(out)], cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        # wait until the first log rows exist, then let it run a couple of seconds more
+        deadline = time.monotonic() + 120
+        while not (out / "drone1.csv").exists() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        time.sleep(3.0)
+        # WHEN the user presses Ctrl-C
+        proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.kill(proc.pid, signal.SIGKILL)
+    # THEN it exits 130, prints the summary marked as interrupted, and keeps the rows written so far
+    assert proc.returncode == 130, stderr
+    assert "INTERRUPTED" in stdout and "drone1" in stdout
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["interrupted"] is True and 0.5 < summary["sim_time_s"] < 150.0
+    with open(out / "drone1.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    # rows cover the simulated time up to the interruption, at 10 Hz, and the last row is complete
+    assert len(rows) >= 10
+    assert abs(float(rows[-1]["time_s"]) - summary["sim_time_s"]) <= 0.1 + 1e-9
+    assert all(value != "" for value in rows[-1].values())
