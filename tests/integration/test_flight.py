@@ -370,3 +370,20 @@ def test_several_pickups_and_deliveries_in_one_run():
         assert np.linalg.norm(p1[:2] - [30.0, 5.0]) < 1.0 and p1[2] < 0.5
         assert np.linalg.norm(p2[:2] - [0.0, 5.0]) < 1.0 and p2[2] < 0.5
         assert sim.fleet.payload_kg[sim.row("d1")] == 0.0
+
+
+def test_a_mixed_fleet_with_its_own_gains_flies_to_separate_targets_at_once():
+    # GIVEN three drones of different presets, one with softer guidance gains, all in automatic mode together
+    soft = "      position_controller: {gain_vel_p: 1.2, gain_pos_p: 0.6}\n"
+    drones = (drone("s", "small", "{position_m: [0.0, 0.0, 0.3]}")
+              + drone("m", "medium", "{position_m: [5.0, 0.0, 0.3]}", components=soft)
+              + drone("l", "large", "{position_m: [10.0, 0.0, 0.3]}"))
+    targets = {"s": (-10.0, 15.0, 8.0), "m": (20.0, 15.0, 12.0), "l": (10.0, -15.0, 6.0)}
+    with Simulation(load_world_text(flat_world(drones))) as sim:
+        for name, (x, y, z) in targets.items():
+            sim.set_target(name, x, y, z)
+        sim.run(duration=25.0)
+        # THEN each arrives at its own target and holds it
+        for name, target in targets.items():
+            assert np.linalg.norm(sim.position_enu_m(name) - target) < 0.15, name
+            assert np.linalg.norm(sim.velocity_enu_m_s(name)) < 0.1, name

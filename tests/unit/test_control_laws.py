@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
@@ -120,3 +122,41 @@ def test_yaw_rate_turns_the_short_way_across_180_and_respects_its_limit():
                                   np.array([np.deg2rad(-170), np.deg2rad(170), 0.3]), np.full(3, np.pi / 2), GG)
     assert rate[0] < 0 and rate[1] > 0 and rate[2] == 0.0
     assert np.all(np.abs(rate) <= np.pi / 2)
+
+
+def _gains_of(cls, rows):
+    """Per-vehicle gain arrays (as the systems stack them from the world file) and the per-row scalars."""
+    names = [f.name for f in dataclasses.fields(cls)]
+    per_row = [cls(**{n: getattr(cls(), n) * s for n in names}) for s in rows]
+    stacked = cls(**{n: np.array([getattr(g, n) for g in per_row]) for n in names})
+    return stacked, per_row
+
+
+def test_a_fleet_with_per_vehicle_gains_computes_what_each_vehicle_alone_computes(rng):
+    # GIVEN three vehicles whose gains differ (scaled 0.5x, 1x, 1.7x) and random states
+    n, dt = 3, 1 / 240
+    gg, gg_rows = _gains_of(GuidanceGains, [0.5, 1.0, 1.7])
+    sg, sg_rows = _gains_of(StabilizerGains, [0.5, 1.0, 1.7])
+    pos_sp, pos, vel_sp, vel = (rng.uniform(-20, 20, (n, 3)) for _ in range(4))
+    vel_int = rng.uniform(-1, 1, (n, 2))
+    to_go, lim_h, lim_up, lim_down = rng.uniform(1, 50, n), np.full(n, 10.0), np.full(n, 8.0), np.full(n, 5.0)
+    lim_tilt, yaw, yaw_sp = np.full(n, 0.6), rng.uniform(-3, 3, n), rng.uniform(-3, 3, n)
+    vz_int, hover, cos_tilt = rng.uniform(-0.5, 0.5, n), np.full(n, 0.6), np.full(n, 0.95)
+    att = rng.uniform(-0.3, 0.3, (4, n))
+    rates = rng.uniform(-1, 1, (n, 3))
+
+    def laws(i, g, s):
+        sl = slice(None) if i is None else slice(i, i + 1)
+        return [position_to_velocity_sp(pos_sp[sl], pos[sl], to_go[sl], lim_h[sl], lim_up[sl], lim_down[sl], g),
+                *velocity_to_accel_sp(vel_sp[sl], vel[sl], vel_int[sl], dt, lim_tilt[sl], g),
+                heading_to_yaw_rate_sp(yaw_sp[sl], yaw[sl], np.full(len(yaw[sl]), np.pi / 2), g),
+                *vertical_speed_to_thrust_frac(vel_sp[sl, 2], vel[sl, 2], att[0, sl], vz_int[sl], hover[sl],
+                                               cos_tilt[sl], dt, s),
+                attitude_to_torque_cmd(att[1, sl], att[2, sl], att[3, sl], att[0, sl], att[1, sl], rates[sl], s)]
+
+    # WHEN the laws run once on the fleet and once per vehicle
+    fleet = laws(None, gg, sg)
+    alone = [laws(i, gg_rows[i], sg_rows[i]) for i in range(n)]
+    # THEN every output row equals the lone vehicle's output
+    for k, out in enumerate(fleet):
+        assert_allclose(out, np.concatenate([a[k] for a in alone]), rtol=1e-12, atol=1e-12)

@@ -29,6 +29,12 @@ class GuidanceGains:
     lim_decel_m_s2: Annotated[float, Gt(0.0)] = 2.5      # braking that sizes the approach speed
 
 
+def _per_row(gain: float | np.ndarray) -> float | np.ndarray:
+    """A gain that multiplies (N, k) vectors: scalars as they are, (N,) arrays as an (N, 1) column."""
+    gain = np.asarray(gain, dtype=float)
+    return gain[..., None] if gain.ndim else float(gain)
+
+
 def position_to_velocity_sp(pos_sp_enu_m: np.ndarray, pos_enu_m: np.ndarray, dist_to_go_m: np.ndarray,
                             lim_speed_h_m_s: np.ndarray, lim_climb_m_s: np.ndarray, lim_descent_m_s: np.ndarray,
                             gains: GuidanceGains) -> np.ndarray:
@@ -66,7 +72,7 @@ def velocity_to_accel_sp(vel_sp_enu_m_s: np.ndarray, vel_enu_m_s: np.ndarray, ve
     trial = vel_int + err * dt_s
     trial_norm = np.linalg.norm(trial, axis=1)
     trial *= np.minimum(1.0, lim_int / np.maximum(trial_norm, 1e-12))[:, None]
-    acc = gains.gain_vel_p * err + gains.gain_vel_i * trial
+    acc = _per_row(gains.gain_vel_p) * err + _per_row(gains.gain_vel_i) * trial
     lim_acc = GRAVITY_M_S2 * np.tan(lim_tilt_rad)
     norm = np.linalg.norm(acc, axis=1)
     limited = norm > lim_acc
