@@ -23,6 +23,7 @@ from .physics.bodies import create_box_body
 from .physics.client import PhysicsClient
 from .physics.static_scene import build_static_scene
 from .plugins import Registry
+from .systems.impacts import ImpactMonitorSystem
 from .systems.outputs import TrajectoryLogSystem
 from .systems.physics import PhysicsStepSystem
 from .systems.state import StateReadbackSystem
@@ -127,7 +128,8 @@ class Simulation:
 
     def _add_systems(self, world: WorldDefinition) -> None:
         self._state = StateReadbackSystem()
-        systems: list[Any] = [PhysicsStepSystem(), self._state]
+        systems: list[Any] = [PhysicsStepSystem(), self._state,
+                              ImpactMonitorSystem(self.static_body_ids, world.layout)]
         classes: list[type] = []
         for ent in world.entities:
             for key in ent.components:

@@ -23,6 +23,7 @@ def build_summary(sim: Simulation, stats: RunStats) -> dict[str, Any]:
             "start_enu_m": [round(float(x), 3) for x in ent.pos_enu_m],
             "final_enu_m": [round(float(x), 3) for x in sim.fleet.pos_enu_m[row]],
             "distance_m": round(float(sim.fleet.odometer_m[row]), 3),
+            "impacts": int(sim.fleet.impacts[row]) if hasattr(sim.fleet, "impacts") else 0,
         }
         if ent.kind == "quadrotor" and hasattr(sim.fleet, "energy_used_j"):
             status = sim.mission_status(ent.name)
@@ -41,6 +42,7 @@ def build_summary(sim: Simulation, stats: RunStats) -> dict[str, Any]:
         "real_time_factor": round(stats.real_time_factor, 3),
         "interrupted": stats.interrupted,
         "entities": entities,
+        "events": [{"time_s": t, "entity": name, "text": text} for t, name, text in sim.events],
         "logs": {name: str(p) for name, p in sim.log_paths.items()},
     }
 
@@ -61,13 +63,18 @@ def format_summary(summary: dict[str, Any]) -> str:
     if ents:
         w = max(len("name"), *(len(e["name"]) for e in ents))
         lines.append(f"  {'name':<{w}}  {'kind':<9}  {'preset':<7}  {'distance_m':>10}  {'energy_Wh':>9}  "
-                     f"{'final ENU [m]':<26}  mission")
+                     f"{'impacts':>7}  {'final ENU [m]':<26}  mission")
         for e in ents:
             x, y, z = e["final_enu_m"]
             energy = f"{e['energy_used_wh']:>9.2f}" if "energy_used_wh" in e else f"{'-':>9}"
             lines.append(f"  {e['name']:<{w}}  {e['kind']:<9}  {e['preset'] or '-':<7}  "
-                         f"{e['distance_m']:>10.2f}  {energy}  {f'({x:.2f}, {y:.2f}, {z:.2f})':<26}  "
+                         f"{e['distance_m']:>10.2f}  {energy}  {e['impacts']:>7}  {f'({x:.2f}, {y:.2f}, {z:.2f})':<26}  "
                          f"{_mission_text(e.get('mission'))}")
+    impacts = [e for e in summary.get("events", []) if e["text"].startswith("impact")]
+    for e in impacts[:10]:
+        lines.append(f"  t={e['time_s']:.2f} s {e['entity']}: {e['text']}")
+    if len(impacts) > 10:
+        lines.append(f"  ... {len(impacts) - 10} more impacts in summary.json")
     return "\n".join(lines)
 
 

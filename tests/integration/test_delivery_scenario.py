@@ -35,6 +35,7 @@ def delivery_run(tmp_path_factory):
             "home": sim.layout.pads["start_1"],
             "drone3_z": sim.position_enu_m("drone3")[2],
             "events": sim.events,
+            "impacts": [e for e in sim.events if e[2].startswith("impact")],
         }
     return out, result
 
@@ -48,6 +49,11 @@ def test_delivery_mission_completes_and_the_package_ends_on_the_rooftop_pad(deli
     assert r["package"][2] == pytest.approx(pad.center_enu_m[2] + 0.15, abs=0.05)
     # and drone 1 is back home
     assert np.linalg.norm(r["drone1"][:2] - r["home"].center_enu_m[:2]) < 1.5
+
+
+def test_the_shipped_routes_clear_every_building_and_tree(delivery_run):
+    # the rooftop route detours around a 56 m tower that stands on the straight line
+    assert delivery_run[1]["impacts"] == []
 
 
 def test_target_sequence_drone_completes_and_teleop_drone_hovers(delivery_run):

@@ -13,6 +13,7 @@ import pytest
 
 from unetyemu_ecs import Simulation, load_world_text
 from unetyemu_ecs.control.energy import hover_power_w
+from unetyemu_ecs.scene.primitives import SceneClass
 from unetyemu_ecs.systems.flight_state import FlightMode
 
 G = 9.81
@@ -387,3 +388,37 @@ def test_a_mixed_fleet_with_its_own_gains_flies_to_separate_targets_at_once():
         for name, target in targets.items():
             assert np.linalg.norm(sim.position_enu_m(name) - target) < 0.15, name
             assert np.linalg.norm(sim.velocity_enu_m_s(name)) < 0.1, name
+
+
+def test_flying_into_a_building_is_reported_as_an_impact_naming_it_and_a_landing_is_not():
+    # GIVEN a drone 20 m west of a 30 m tall building on flat ground
+    world = """
+world: {name: crash, physics_hz: 240, seed: 7}
+scene:
+  generator: none
+  ground_size_m: 200
+  buildings: [{center_m: [20.0, 0.0], size_m: [10.0, 10.0], height_m: 30.0}]
+  pads: [{name: home, position_m: [0, 0]}]
+vehicles:
+""" + drone("d1")
+    with Simulation(load_world_text(world)) as sim:
+        # WHEN it takes off, lands and takes off again THEN none of that is an impact
+        hover(sim, "d1", 10.0, 6.0)
+        sim.set_target("d1", 0.0, 0.0, 0.0, speed=3.0)
+        sim.run(duration=10.0)
+        assert sim.position_enu_m("d1")[2] < 0.5
+        hover(sim, "d1", 10.0, 6.0)
+        assert sim.fleet.impacts[sim.row("d1")] == 0, sim.events
+        # WHEN it is sent through the building at 6 m/s (and pressed against it for a second)
+        sim.set_target("d1", 40.0, 0.0, 10.0, speed=6.0)
+        sim.run(duration=4.0)
+        # THEN exactly one impact is reported, naming the building and a point on its west face
+        building = next(o for o in sim.layout.objects if o.cls == SceneClass.BUILDING)
+        impacts = [e for e in sim.events if e[2].startswith("impact")]
+        assert len(impacts) == 1 and sim.fleet.impacts[sim.row("d1")] == 1, impacts
+        t, who, text = impacts[0]
+        assert who == "d1" and f"impact with {building.name} at 6." in text
+        x_hit = float(text.split("ENU (")[1].split(",")[0])
+        assert x_hit == pytest.approx(15.0, abs=0.1)
+        # AND the drone did not pass through the wall
+        assert sim.position_enu_m("d1")[0] < 15.0

@@ -42,7 +42,7 @@ def test_vertical_ray_onto_roof_pad_hits_its_top(client, city):
     # WHEN a ray is cast from 100 m straight down onto the pad centre
     body, pos = _ray(client, [x, y, 100.0], [x, y, -1.0])
     # THEN it hits the pad body at the pad's top
-    assert body == ids[-1]
+    assert ids[body] == SceneClass.PAD
     assert abs(pos[2] - z) < RAY_TOL_M
 
 
@@ -53,7 +53,7 @@ def test_vertical_ray_onto_road_hits_road_surface(client, city):
     x, y = road.shapes[0].center_enu_m[:2]
     # WHEN a ray is cast straight down THEN it hits the road body at the road top
     body, pos = _ray(client, [x, y, 100.0], [x, y, -1.0])
-    assert body == ids[1]
+    assert ids[body] == SceneClass.ROAD
     assert abs(pos[2] - ROAD_TOP_Z_M) < RAY_TOL_M
 
 
@@ -69,7 +69,7 @@ def test_horizontal_ray_hits_building_face_at_known_distance(client, city):
     # WHEN a ray at 1.5 m height travels east from x = -20
     body, pos = _ray(client, [-20.0, 250.0, 1.5], [0.0, 250.0, 1.5])
     # THEN it hits the building body 15 m away at its west face
-    assert body == city[1][3]
+    assert city[1][body] == SceneClass.BUILDING
     assert abs(pos[0] - (-5.0)) < RAY_TOL_M
 
 
@@ -80,15 +80,16 @@ def test_vertical_ray_onto_tree_crown_hits_crown_top(client, city):
     crown = tree.shapes[1]
     x, y, zc = crown.center_enu_m
     body, pos = _ray(client, [x, y, 100.0], [x, y, -1.0])
-    assert body == ids[4]
+    assert ids[body] == SceneClass.TREE
     assert abs(pos[2] - (zc + crown.radius_m)) < RAY_TOL_M
 
 
 def test_ground_and_road_have_high_friction(client, city):
     # GIVEN the built scene WHEN friction is read THEN ground and road use 0.9
     _, ids = city
-    assert p.getDynamicsInfo(ids[0], -1, physicsClientId=client)[1] == pytest.approx(0.9)
-    assert p.getDynamicsInfo(ids[1], -1, physicsClientId=client)[1] == pytest.approx(0.9)
+    by_cls = {cls: body for body, cls in ids.items()}
+    assert p.getDynamicsInfo(by_cls[SceneClass.GROUND], -1, physicsClientId=client)[1] == pytest.approx(0.9)
+    assert p.getDynamicsInfo(by_cls[SceneClass.ROAD], -1, physicsClientId=client)[1] == pytest.approx(0.9)
 
 
 def test_box_dropped_on_sidewalk_comes_to_rest_on_curb_top(client, city):

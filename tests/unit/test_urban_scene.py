@@ -218,3 +218,24 @@ def test_depot_block_outside_grid_is_rejected():
     # GIVEN a depot block outside a 2 x 2 grid WHEN the params are built THEN a ValueError says so
     with pytest.raises(ValueError, match="depot_block"):
         UrbanParams(blocks_x=2, blocks_y=2, depot_block=(2, 0))
+
+
+def test_nearest_object_names_the_building_a_point_on_its_face_belongs_to(city):
+    # GIVEN every building in the city and a point 1 cm outside the middle of its east face
+    for obj, box in _boxes_of(city, SceneClass.BUILDING)[:40]:
+        c, h, yaw = box.center_enu_m, box.half_extents_m, box.yaw_rad
+        east_face = c + np.array([np.cos(yaw), np.sin(yaw), 0.0]) * (h[0] + 0.01)
+        # WHEN the nearest building is looked up THEN it is that building, 1 cm away
+        found, dist = city.nearest_object(east_face, SceneClass.BUILDING)
+        assert found.object_id == obj.object_id
+        assert dist == pytest.approx(0.01, abs=1e-9)
+
+
+def test_nearest_object_measures_to_tree_crowns_and_the_ground(city):
+    tree = next(o for o in city.objects if o.cls == SceneClass.TREE)
+    crown = tree.shapes[1]
+    above = crown.center_enu_m + np.array([0.0, 0.0, crown.radius_m + 0.5])
+    found, dist = city.nearest_object(above, SceneClass.TREE)
+    assert found.object_id == tree.object_id and dist == pytest.approx(0.5)
+    found, dist = city.nearest_object(np.array([0.0, 0.0, 0.3]), SceneClass.GROUND)
+    assert found.object_id == 0 and dist == pytest.approx(0.3)

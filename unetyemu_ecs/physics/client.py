@@ -101,6 +101,10 @@ class PhysicsClient:
         """Ids of the bodies ``body`` was in contact with at the last step."""
         return {c[2] for c in p.getContactPoints(bodyA=body, physicsClientId=self.id)}
 
+    def contacts(self) -> list[tuple[int, int, tuple[float, float, float]]]:
+        """Every contact point after the last step as ``(body_a, body_b, point_on_b_enu_m)`` (one call)."""
+        return [(c[1], c[2], c[6]) for c in p.getContactPoints(physicsClientId=self.id)]
+
     def contact_count(self, body_a: int, body_b: int | None = None) -> int:
         """Number of contact points of ``body_a`` (with ``body_b`` if given) after the last step."""
         if body_b is None:

@@ -70,7 +70,7 @@ def _urdf(name: str, cls: SceneClass, shapes: list) -> str:
     return "\n".join(lines)
 
 
-def build_static_scene(client_id: int, layout: SceneLayout) -> list[int]:
+def build_static_scene(client_id: int, layout: SceneLayout) -> dict[int, SceneClass]:
     """Create the layout's static geometry in a PyBullet client.
 
     Parameters
@@ -80,9 +80,10 @@ def build_static_scene(client_id: int, layout: SceneLayout) -> list[int]:
 
     Returns
     -------
-    list of int
-        Body ids: the ground plane first, then one fixed body per non-empty scene class other than
-        GROUND, in :class:`SceneClass` order (ROAD, SIDEWALK, BUILDING, TREE, PAD).
+    dict of int -> SceneClass
+        Body id -> the class it holds: the ground plane first, then one fixed body per non-empty
+        scene class other than GROUND, in :class:`SceneClass` order (ROAD, SIDEWALK, BUILDING,
+        TREE, PAD).
     """
     ground = layout.objects[0].shapes[0]
     plane = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=client_id)
@@ -95,7 +96,7 @@ def build_static_scene(client_id: int, layout: SceneLayout) -> list[int]:
         )
     ground_id = p.createMultiBody(0.0, plane, plane_vis, [0.0, 0.0, 0.0], physicsClientId=client_id)
     p.changeDynamics(ground_id, -1, lateralFriction=GROUND_FRICTION, physicsClientId=client_id)
-    ids = [ground_id]
+    ids = {ground_id: SceneClass.GROUND}
 
     by_cls: dict[SceneClass, list] = {}
     for obj in layout.objects[1:]:
@@ -111,7 +112,7 @@ def build_static_scene(client_id: int, layout: SceneLayout) -> list[int]:
                               physicsClientId=client_id)
             if cls in _HIGH_FRICTION:
                 p.changeDynamics(body, -1, lateralFriction=GROUND_FRICTION, physicsClientId=client_id)
-            ids.append(body)
+            ids[body] = cls
     return ids
 
 

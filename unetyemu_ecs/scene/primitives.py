@@ -159,18 +159,21 @@ class SceneLayout:
         for i, obj in enumerate(self.objects):
             if obj.object_id != i:
                 raise ValueError(f"objects[{i}] has object_id {obj.object_id}; ids must equal positions")
-        box_rows, cyl_rows = [], []
+        box_rows, cyl_rows, sph_rows = [], [], []
         for obj in self.objects:
             for s in obj.shapes:
                 if isinstance(s, Box):
                     box_rows.append((*s.center_enu_m, *s.half_extents_m, s.yaw_rad, obj.object_id))
                 elif isinstance(s, Cylinder):
                     cyl_rows.append((*s.center_enu_m, s.radius_m, s.half_height_m, obj.object_id))
+                else:
+                    sph_rows.append((*s.center_enu_m, s.radius_m, obj.object_id))
         boxes = np.array(box_rows, dtype=np.float64).reshape(-1, 8)
         cyls = np.array(cyl_rows, dtype=np.float64).reshape(-1, 6)
-        for a in (boxes, cyls):
+        spheres = np.array(sph_rows, dtype=np.float64).reshape(-1, 5)
+        for a in (boxes, cyls, spheres):
             a.flags.writeable = False
-        object.__setattr__(self, "_footprints", (boxes, cyls))
+        object.__setattr__(self, "_footprints", (boxes, cyls, spheres))
 
     def support_at(self, x_m: float, y_m: float) -> tuple[float, int]:
         """Return the top height [m] and object id of the highest box/cylinder covering (x, y).
@@ -178,7 +181,7 @@ class SceneLayout:
         Spheres (tree crowns) are not supports. Returns ``(0.0, 0)`` (the ground) when nothing covers
         the point. Points exactly on a footprint's edge count as covered.
         """
-        boxes, cyls = self._footprints
+        boxes, cyls, _ = self._footprints
         best_z, best_id = 0.0, 0
         if boxes.shape[0]:
             dx, dy = x_m - boxes[:, 0], y_m - boxes[:, 1]
@@ -201,6 +204,42 @@ class SceneLayout:
     def surface_height_m(self, x_m: float, y_m: float) -> float:
         """Return the top z [m] of the highest box/cylinder footprint covering (x, y); 0.0 for ground."""
         return self.support_at(x_m, y_m)[0]
+
+    def nearest_object(self, point_enu_m: np.ndarray, cls: SceneClass | None = None) -> tuple[SceneObject, float]:
+        """Return the object (of class ``cls`` if given) whose surface is nearest to a point, and that distance [m].
+
+        Used to name what a vehicle touched (a contact point lies on the surface, distance ~0).
+        The ground plane (object 0) counts as the plane z = 0. Not for the hot path: O(shapes).
+        """
+        q = np.asarray(point_enu_m, dtype=np.float64)
+        boxes, cyls, spheres = self._footprints
+        dists, ids = [np.array([abs(q[2])])], [np.array([0])]
+        if boxes.shape[0]:
+            d = q - boxes[:, :3]
+            c, s = np.cos(boxes[:, 6]), np.sin(boxes[:, 6])
+            local = np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], d[:, 2]], axis=1)
+            outside = np.abs(local) - boxes[:, 3:6]
+            dist = np.linalg.norm(np.maximum(outside, 0.0), axis=1) + np.minimum(outside.max(axis=1), 0.0)
+            dists.append(np.abs(dist))
+            ids.append(boxes[:, 7].astype(int))
+        if cyls.shape[0]:
+            radial = np.hypot(q[0] - cyls[:, 0], q[1] - cyls[:, 1]) - cyls[:, 3]
+            axial = np.abs(q[2] - cyls[:, 2]) - cyls[:, 4]
+            out = np.stack([radial, axial], axis=1)
+            dist = np.linalg.norm(np.maximum(out, 0.0), axis=1) + np.minimum(out.max(axis=1), 0.0)
+            dists.append(np.abs(dist))
+            ids.append(cyls[:, 5].astype(int))
+        if spheres.shape[0]:
+            dists.append(np.abs(np.linalg.norm(q - spheres[:, :3], axis=1) - spheres[:, 3]))
+            ids.append(spheres[:, 4].astype(int))
+        dist_all, id_all = np.concatenate(dists), np.concatenate(ids)
+        if cls is not None:
+            keep = np.array([self.objects[i].cls == cls for i in id_all])
+            if not keep.any():
+                raise ValueError(f"the scene has no {cls.name.lower()} objects")
+            dist_all, id_all = dist_all[keep], id_all[keep]
+        k = int(np.argmin(dist_all))
+        return self.objects[int(id_all[k])], float(dist_all[k])
 
 
 __all__ = [
