@@ -10,6 +10,8 @@ import pytest
 from unetyemu_ecs.config.schema import ConfigError
 from unetyemu_ecs.mission import MissionSpec, MissionStep, Waypoint, mission_to_json, parse_mission
 
+from ..conftest import REPO_ROOT
+
 GOOD = {
     "name": "square",
     "cruise_speed": 6.0,
@@ -304,3 +306,11 @@ def test_mission_to_json_round_trips_numbers_json_writes_in_exponent_form():
     spec = MissionSpec(steps=[MissionStep(type="cruise", waypoints=[Waypoint(x=1e-7, y=1e20, z=3.0)])])
     # THEN they come back as the same numbers
     assert parse_mission(mission_to_json(spec)) == spec
+
+
+def test_the_readme_mission_example_parses():
+    readme = (REPO_ROOT / "README.md").read_text(encoding="utf-8")
+    block = readme.split("```json\n", 1)[1].split("```", 1)[0]
+    spec = parse_mission(block, source="README.md")
+    assert [s.type for s in spec.steps] == ["pickup", "takeoff", "cruise", "land", "deliver", "recharge", "idle"]
+    assert spec.steps[2].pad == "roof_1" and spec.steps[2].waypoints[0].cruise_speed == 6.0
