@@ -13,6 +13,7 @@ import esper
 import numpy as np
 
 from .components.body import FleetSlot, Identity, RigidBody
+from .components.car import CarBody, CarDynamics
 from .components.mission import MissionRuntime
 from .config.schema import ConfigError, Issue
 from .config.world_file import EntityDefinition, WorldDefinition, load_world
@@ -20,15 +21,17 @@ from .fleet import FleetState
 from .frames import quat_xyzw_from_euler_rpy
 from .geodesy import GeodeticOrigin
 from .physics.bodies import create_box_body
+from .physics.car_body import CarGeometry, create_car_body
 from .physics.client import PhysicsClient
 from .physics.static_scene import build_static_scene
 from .plugins import Registry
+from .systems.commands import InboxSystem, UnclaimedCommandSystem
 from .systems.impacts import ImpactMonitorSystem
 from .systems.outputs import TrajectoryLogSystem
 from .systems.physics import PhysicsStepSystem
 from .systems.state import StateReadbackSystem
 from .mission import MissionSpec, mission_reference_issues, parse_mission
-from .transport.bus import Arm, Inbox, LoadMission, SetTarget, Teleop
+from .transport.bus import Arm, CmdVel, Drive, DriveRoute, Inbox, LoadMission, SetTarget, Teleop
 from .world import EcsWorld, SimServices, StepContext
 
 PACKAGE_RGBA = (0.80, 0.60, 0.30, 1.0)
@@ -105,20 +108,32 @@ class Simulation:
     # -- building ----------------------------------------------------------------------------
     def _spawn(self, ent: EntityDefinition) -> None:
         assert self.physics is not None
+        quat = np.asarray(quat_xyzw_from_euler_rpy(0.0, 0.0, ent.yaw_rad)).ravel()
+        mass = float(ent.params["mass_kg"])
+        car_joints = None
         if ent.kind == "package":
             half = np.asarray(ent.params["size_m"], dtype=float) / 2.0
-            rgba = PACKAGE_RGBA
+            body = create_box_body(self.physics.id, half, mass, ent.pos_enu_m, quat, PACKAGE_RGBA)
+        elif ent.kind == "car":
+            half = np.asarray(ent.params["body_half_extents_m"], dtype=float)
+            dyn: CarDynamics = ent.components["car_dynamics"]
+            clearance = float(ent.params["ground_clearance_m"])
+            geometry = CarGeometry(
+                half_extents_m=tuple(half), mass_kg=mass, wheelbase_m=dyn.wheelbase_m, track_m=dyn.track_m,
+                wheel_radius_m=dyn.wheel_radius_m, wheel_width_m=dyn.wheel_width_m, wheel_mass_kg=dyn.wheel_mass_kg,
+                wheel_z_m=dyn.wheel_radius_m - clearance - half[2], max_steer_rad=math.radians(dyn.max_steer_deg),
+                suspension_travel_m=dyn.suspension_travel_m, rgba=tuple(ent.params["rgba"]))
+            body, car_joints = create_car_body(self.physics.id, geometry, ent.pos_enu_m, quat, dyn.tyre_friction)
         else:
             half = np.asarray(ent.params["body_half_extents_m"], dtype=float)
-            rgba = tuple(ent.params["rgba"])
-        mass = float(ent.params["mass_kg"])
-        quat = quat_xyzw_from_euler_rpy(0.0, 0.0, ent.yaw_rad)
-        body = create_box_body(self.physics.id, half, mass, ent.pos_enu_m, np.asarray(quat).ravel(), rgba)
+            body = create_box_body(self.physics.id, half, mass, ent.pos_enu_m, quat, tuple(ent.params["rgba"]))
         eid = esper.create_entity()
         row = self.fleet.allocate(eid, body)
         esper.add_component(eid, Identity(name=ent.name, kind=ent.kind, preset=ent.preset, index=ent.index))
         esper.add_component(eid, FleetSlot(row=row))
         esper.add_component(eid, RigidBody(body_id=body, mass_kg=mass, half_extents_m=half))
+        if car_joints is not None:
+            esper.add_component(eid, CarBody(joints=car_joints))
         for key, comp in ent.components.items():
             if key == "mission":
                 esper.add_component(eid, MissionRuntime(spec=comp))
@@ -128,7 +143,7 @@ class Simulation:
 
     def _add_systems(self, world: WorldDefinition) -> None:
         self._state = StateReadbackSystem()
-        systems: list[Any] = [PhysicsStepSystem(), self._state,
+        systems: list[Any] = [InboxSystem(), UnclaimedCommandSystem(), PhysicsStepSystem(), self._state,
                               ImpactMonitorSystem(self.static_body_ids, world.layout)]
         classes: list[type] = []
         for ent in world.entities:
@@ -210,19 +225,28 @@ class Simulation:
 
     # -- commands (applied at the next step's COMMANDS phase) ---------------------------------
     def _drone(self, name: str) -> int:
+        return self._of_kind(name, "quadrotor", "a drone")
+
+    def _car(self, name: str) -> int:
+        return self._of_kind(name, "car", "a car")
+
+    def _of_kind(self, name: str, kind: str, what: str) -> int:
         ent = self.entity(name)
-        kind = self.definition_of(name).kind
-        if kind != "quadrotor":
-            raise ValueError(f"{name!r} is a {kind}, not a drone")
+        actual = self.definition_of(name).kind
+        if actual != kind:
+            raise ValueError(f"{name!r} is a {actual}, not {what}")
         return ent
 
-    def set_target(self, name: str, x: float, y: float, z: float, yaw_deg: float | None = None,
+    def set_target(self, name: str, x: float, y: float, z: float = 0.0, yaw_deg: float | None = None,
                    speed: float | None = None) -> None:
-        """Fly drone ``name`` to ENU ``(x, y, z)`` [m], facing ``yaw_deg`` (ENU, None = keep), at ``speed`` [m/s].
+        """Send vehicle ``name`` to ENU ``(x, y, z)`` [m] at ``speed`` [m/s] (None = its default).
 
-        Cancels a running mission. Raises ``ValueError`` for non-finite values or a non-positive speed.
+        A drone flies there (cancelling a running mission) and faces ``yaw_deg`` (ENU, None = keep);
+        a car drives there on the ground (``z`` and ``yaw_deg`` are ignored) and stops. Raises
+        ``ValueError`` for non-finite values, a non-positive speed, or a package.
         """
-        self._drone(name)
+        if self.definition_of(name).kind == "package":
+            raise ValueError(f"{name!r} is a package, not a vehicle")
         values = [x, y, z, *(v for v in (yaw_deg, speed) if v is not None)]
         if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
             raise ValueError(f"set_target({name!r}): values must be finite numbers, got {values}")
@@ -254,9 +278,50 @@ class Simulation:
         self.inbox.put(Teleop(name, tuple(float(v) for v in stick)))
 
     def arm(self, name: str, armed: bool = True) -> None:
-        """Arm (hold position in AUTO mode) or disarm (motors off) drone ``name``."""
-        self._drone(name)
+        """Arm (hold position in AUTO mode) or disarm (motors off) drone ``name``; for a car, release
+        the parking brake and hold still under speed control, or park it (brakes on)."""
+        if self.definition_of(name).kind == "package":
+            raise ValueError(f"{name!r} is a package, not a vehicle")
         self.inbox.put(Arm(name, bool(armed)))
+
+    def drive(self, name: str, throttle: float, brake: float, steering: float) -> None:
+        """Drive car ``name`` by hand (MANUAL): ``throttle`` in [-1, 1] (negative = reverse), ``brake``
+        in [0, 1], ``steering`` in [-1, 1] (+1 = full left; the limit shrinks with speed)."""
+        self._car(name)
+        cmd = (throttle, brake, steering)
+        if not (all(isinstance(v, (int, float)) and math.isfinite(v) for v in cmd)
+                and -1 <= throttle <= 1 and 0 <= brake <= 1 and -1 <= steering <= 1):
+            raise ValueError(f"drive({name!r}): need throttle in [-1, 1], brake in [0, 1], steering in [-1, 1], "
+                             f"got {cmd}")
+        self.inbox.put(Drive(name, float(throttle), float(brake), float(steering)))
+
+    def cmd_vel(self, name: str, forward_m_s: float, yaw_rate_rad_s: float) -> None:
+        """Drive car ``name`` at a forward speed [m/s] (negative = reverse) and yaw rate [rad/s], CCW
+        positive (ROS ``cmd_vel`` ``linear.x`` and ``angular.z``); held until the next command."""
+        self._car(name)
+        values = (forward_m_s, yaw_rate_rad_s)
+        if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
+            raise ValueError(f"cmd_vel({name!r}): values must be finite numbers, got {values}")
+        self.inbox.put(CmdVel(name, float(forward_m_s), float(yaw_rate_rad_s)))
+
+    def drive_route(self, name: str, waypoints: list[tuple[float, float]], speed: float | None = None,
+                    loop: bool = False, laps: int = 0) -> None:
+        """Drive car ``name`` through ENU ``(x, y)`` waypoints [m] in order at ``speed`` [m/s] (slower
+        in corners), stopping at the last; with ``loop`` go round ``laps`` times (0 = forever)."""
+        self._car(name)
+        try:
+            wp = tuple((float(x), float(y)) for x, y in waypoints)
+        except (TypeError, ValueError):
+            raise ValueError(f"drive_route({name!r}): waypoints must be (x, y) pairs of numbers") from None
+        if not wp or not all(math.isfinite(v) for xy in wp for v in xy):
+            raise ValueError(f"drive_route({name!r}): need at least one finite (x, y) waypoint")
+        if speed is not None and not (math.isfinite(speed) and speed > 0):
+            raise ValueError(f"drive_route({name!r}): speed must be a finite number > 0, got {speed}")
+        if loop and len(wp) < 3:
+            raise ValueError(f"drive_route({name!r}): a loop needs at least 3 waypoints, got {len(wp)}")
+        if laps < 0 or (laps and not loop):
+            raise ValueError(f"drive_route({name!r}): laps must be >= 0 and needs loop=True")
+        self.inbox.put(DriveRoute(name, wp, None if speed is None else float(speed), bool(loop), int(laps)))
 
     def mission_status(self, name: str) -> dict[str, Any] | None:
         """Status of the drone's mission (step, step type, state, reason), or None without one."""

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 from .components.aero import AeroDrag
+from .components.car import CarDynamics, CarRoute
 from .components.flight import EnergyModel, GuidanceLimits, PayloadBay, QuadrotorMotors, TeleopScript
 from .control.attitude import StabilizerGains
+from .control.car import CarControllerGains
 from .control.position import GuidanceGains
 from .mission import MissionSpec
 from .plugins import ComponentPlugin
 from .systems.actuate import AeroDragSystem
+from .systems.car import CarActuationSystem, CarCommandSystem, CarControllerSystem, CarGuidanceSystem
 from .systems.commands import FlightCommandSystem
 from .systems.energy import EnergySystem
 from .systems.guidance import GuidanceSystem
@@ -18,6 +21,7 @@ from .systems.payload import PayloadSystem
 from .systems.stabilize import StabilizerSystem
 
 QUADROTOR = frozenset({"quadrotor"})
+CAR = frozenset({"car"})
 
 AERO_DRAG = ComponentPlugin(
     component=AeroDrag, systems=(AeroDragSystem,),
@@ -44,3 +48,13 @@ MISSION = ComponentPlugin(component=MissionSpec, applies_to=QUADROTOR,
                           summary="mission started at t = 0 (steps: takeoff, cruise, land, pickup, deliver, recharge, idle)")
 TELEOP_SCRIPT = ComponentPlugin(component=TeleopScript, applies_to=QUADROTOR,
                                 summary="scripted manual sticks [throttle, pitch, roll, yaw] over time")
+
+CAR_DYNAMICS = ComponentPlugin(
+    component=CarDynamics,
+    systems=(CarCommandSystem, CarGuidanceSystem, CarControllerSystem, CarActuationSystem),
+    applies_to=CAR,
+    summary="chassis on four sprung wheels: rear-wheel drive, front steering, brakes; brings the car stack")
+CAR_CONTROLLER = ComponentPlugin(component=CarControllerGains, applies_to=CAR,
+                                 summary="speed PI, course control and route-following parameters")
+CAR_ROUTE = ComponentPlugin(component=CarRoute, applies_to=CAR,
+                            summary="route driven from t = 0: waypoints [{x, y}], speed_m_s, loop, laps")

@@ -11,7 +11,7 @@ from __future__ import annotations
 import uuid
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import esper
@@ -36,12 +36,14 @@ class SimServices:
     inbox : commands from the API and transports, drained in COMMANDS
     entities : world-file name -> esper entity id
     events : (sim_time_s, vehicle, message) notices of rare events (mission steps, payload), in order
+    pending : commands drained from the inbox this step, not yet taken by a command system
     """
 
     layout: SceneLayout
     inbox: Inbox
     entities: dict[str, int]
     events: list[tuple[float, str, str]]
+    pending: list[Any] = field(default_factory=list)
 
     def note(self, sim_time_s: float, vehicle: str, message: str) -> None:
         """Record a rare event (never called per step in steady state)."""

@@ -242,7 +242,8 @@ def _resolve_entity(group: str, i: int, item: VehicleSpec | PackageSpec, layout:
     if isinstance(item, VehicleSpec):
         kind = item.type
         params = preset(kind, item.preset)
-        half_z = float(params["body_half_extents_m"][2])
+        # height of the body centre above the surface it stands on (cars ride on their wheels)
+        half_z = float(params["body_half_extents_m"][2]) + float(params.get("ground_clearance_m", 0.0))
         preset_name: str | None = item.preset
     else:
         kind = "package"

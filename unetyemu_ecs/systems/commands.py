@@ -1,8 +1,11 @@
 """COMMANDS phase: apply queued commands (API, ROS 2, MAVLink, teleop) and scripted teleop.
 
-Commands arrive as frozen messages in the inbox; only the newest per vehicle and kind is applied.
-Each is validated again here (finite numbers, known vehicle, drone-only commands on drones): a bad
-one is dropped with a note in the event log, and the simulation goes on.
+Commands arrive as frozen messages in the inbox. :class:`InboxSystem` drains it once per step
+(keeping only the newest per vehicle and kind) into ``services.pending``; each vehicle type's
+command system takes the messages addressed to its vehicles (:func:`claim`); whatever nobody took
+(an unknown vehicle, a drone command sent to a car) is rejected by :class:`UnclaimedCommandSystem`
+with a note in the event log. Every command is validated again where it is applied: a bad one is
+dropped with a note, and the simulation goes on.
 """
 
 from __future__ import annotations
@@ -21,6 +24,50 @@ from ..world import StepContext
 from .flight_state import FlightMode, Route, declare_flight_arrays, set_route
 
 
+class InboxSystem(esper.Processor):
+    """Drain the inbox into ``services.pending``. Phase: COMMANDS, first. Always present."""
+
+    phase = Phase.COMMANDS
+    order = 0
+
+    def process(self, ctx: StepContext) -> None:
+        ctx.services.pending = ctx.services.inbox.drain_latest()
+
+
+class UnclaimedCommandSystem(esper.Processor):
+    """Reject the commands no vehicle system took, naming why. Phase: COMMANDS, last. Always present."""
+
+    phase = Phase.COMMANDS
+    order = 99
+
+    def process(self, ctx: StepContext) -> None:
+        for msg in ctx.services.pending:
+            ent = ctx.services.entities.get(msg.vehicle)
+            if ent is None:
+                why = f"unknown vehicle {msg.vehicle!r}"
+            else:
+                kind = esper.component_for_entity(ent, Identity).kind
+                why = f"a {kind} does not take {type(msg).__name__} commands"
+            ctx.services.note(ctx.sim_time_s, msg.vehicle, f"rejected {msg.kind} command: {why}")
+        ctx.services.pending = []
+
+
+def claim(ctx: StepContext, has: type) -> list[tuple[int, object]]:
+    """Take from ``services.pending`` the commands for entities carrying component ``has``.
+
+    Returns ``(entity, message)`` pairs in arrival order; the rest stay pending.
+    """
+    mine, rest = [], []
+    for msg in ctx.services.pending:
+        ent = ctx.services.entities.get(msg.vehicle)
+        if ent is not None and esper.has_component(ent, has):
+            mine.append((ent, msg))
+        else:
+            rest.append(msg)
+    ctx.services.pending = rest
+    return mine
+
+
 class FlightCommandSystem(esper.Processor):
     """Turn commands into modes, routes, sticks and missions.
 
@@ -37,8 +84,8 @@ class FlightCommandSystem(esper.Processor):
     def process(self, ctx: StepContext) -> None:
         f = ctx.fleet
         declare_flight_arrays(f)
-        for msg in ctx.services.inbox.drain_latest():
-            error = self._apply(ctx, msg)
+        for ent, msg in claim(ctx, GuidanceLimits):
+            error = self._apply(ctx, ent, msg)
             if error:
                 ctx.services.note(ctx.sim_time_s, msg.vehicle, f"rejected {msg.kind} command: {error}")
         for ent, (slot, script) in esper.get_components(FleetSlot, TeleopScript):
@@ -54,14 +101,8 @@ class FlightCommandSystem(esper.Processor):
                 _cancel_mission(ctx, ent, "teleop")
             self._script_next[ent] = k
 
-    def _apply(self, ctx: StepContext, msg: object) -> str:
+    def _apply(self, ctx: StepContext, ent: int, msg: object) -> str:
         f = ctx.fleet
-        ent = ctx.services.entities.get(msg.vehicle)
-        if ent is None:
-            return f"unknown vehicle {msg.vehicle!r}"
-        if not esper.has_component(ent, GuidanceLimits):
-            kind = esper.component_for_entity(ent, Identity).kind
-            return f"{msg.kind} commands need a drone with a flight stack, {msg.vehicle!r} is a {kind}"
         row = esper.component_for_entity(ent, FleetSlot).row
         lim = esper.component_for_entity(ent, GuidanceLimits)
         if isinstance(msg, SetTarget):

@@ -51,7 +51,42 @@ class Arm:
     kind: str = "arm"
 
 
-Command = SetTarget | LoadMission | Teleop | Arm
+@dataclass(frozen=True, slots=True)
+class Drive:
+    """Car teleop: ``throttle`` in [-1, 1] (negative = reverse), ``brake`` in [0, 1], ``steering`` in
+    [-1, 1] (+1 = full left at the current speed's limit); switches the car to MANUAL."""
+
+    vehicle: str
+    throttle: float
+    brake: float
+    steering: float
+    kind: str = "teleop"
+
+
+@dataclass(frozen=True, slots=True)
+class CmdVel:
+    """Car velocity command: forward speed [m/s] (negative = reverse) and yaw rate [rad/s] (CCW)."""
+
+    vehicle: str
+    forward_m_s: float
+    yaw_rate_rad_s: float
+    kind: str = "cmd_vel"
+
+
+@dataclass(frozen=True, slots=True)
+class DriveRoute:
+    """Car route: ENU ``(x, y)`` waypoints [m] driven in order at ``speed_m_s`` (None = default),
+    stopping at the last, or round and round with ``loop`` (``laps`` 0 = forever)."""
+
+    vehicle: str
+    waypoints: tuple[tuple[float, float], ...]
+    speed_m_s: float | None
+    loop: bool = False
+    laps: int = 0
+    kind: str = "target"
+
+
+Command = SetTarget | LoadMission | Teleop | Arm | Drive | CmdVel | DriveRoute
 
 
 class Inbox:

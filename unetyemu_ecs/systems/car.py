@@ -1,0 +1,367 @@
+"""Ground-vehicle systems: commands, route following, speed/course control and the wheeled body.
+
+- :class:`CarCommandSystem` (COMMANDS): targets, routes, teleop, cmd_vel, arm/park; the world
+  file's ``route`` at t = 0.
+- :class:`CarGuidanceSystem` (GUIDANCE): pure pursuit on the route and its speed profile.
+- :class:`CarControllerSystem` (STABILIZE): speed PI -> throttle/brake, course -> steering, with the
+  speed-dependent steering limit and the steering slew rate; teleop passes through.
+- :class:`CarActuationSystem` (ACTUATE): suspension forces, steering angles (Ackermann), rear-wheel
+  drive torque and brakes applied to each car's PyBullet body.
+"""
+
+from __future__ import annotations
+
+import math
+
+import esper
+import numpy as np
+
+from ..components.body import Identity, RigidBody
+from ..components.car import CarBody, CarDynamics, CarRoute
+from ..control.car import (CarControllerGains, ackermann_angles, bicycle_limit_rad, drive_torque_n_m, pure_pursuit_steer,
+                           route_speed_sp, speed_to_throttle_brake, steer_limit_rad, yaw_rate_to_steer)
+from ..control.pursuit import pure_pursuit
+from ..frames import R_from_quat_xyzw
+from ..phases import Phase
+from ..physics.car_body import apply_car_controls, read_suspension
+from ..transport.bus import Arm, CmdVel, Drive, DriveRoute, SetTarget
+from ..units import GRAVITY_M_S2
+from ..world import StepContext
+from .car_state import CarPath, DriveMode, declare_car_arrays, set_path
+from .commands import claim
+from .rows import gather_rows, stack_params
+
+STOPPED_SPEED_M_S = 0.2        # a route is done when the car is this slow within the arrival radius
+
+
+def _gains(ent: int) -> CarControllerGains:
+    return esper.try_component(ent, CarControllerGains) or CarControllerGains()
+
+
+class CarCommandSystem(esper.Processor):
+    """Turn commands into drive modes, paths and setpoints. Phase: COMMANDS (order 20).
+
+    Reads: the inbox (commands for cars), CarRoute components (started at t = 0). Writes:
+    drive_mode, drive_cmd, cmd_vel, car_path.
+    """
+
+    phase = Phase.COMMANDS
+    order = 20
+
+    def __init__(self) -> None:
+        self._started: set[int] = set()
+
+    def process(self, ctx: StepContext) -> None:
+        f = ctx.fleet
+        declare_car_arrays(f)
+        for ent, route in esper.get_component(CarRoute):
+            if ent not in self._started:
+                self._started.add(ent)
+                row = f.row_of(ent)
+                wp = np.array([[w.x, w.y] for w in route.waypoints])
+                self._give_path(ctx, ent, row, wp, route.speed_m_s, route.loop, route.laps)
+        for ent, msg in claim(ctx, CarDynamics):
+            error = self._apply(ctx, ent, msg)
+            if error:
+                ctx.services.note(ctx.sim_time_s, msg.vehicle, f"rejected {msg.kind} command: {error}")
+
+    def _give_path(self, ctx: StepContext, ent: int, row: int, waypoints_xy: np.ndarray, speed: float | None,
+                   loop: bool, laps: int) -> None:
+        f = ctx.fleet
+        gains = _gains(ent)
+        cruise = speed if speed is not None else gains.cruise_speed_m_s
+        top = esper.component_for_entity(ent, CarDynamics).top_speed_m_s
+        path = CarPath.build(f.pos_enu_m[row], waypoints_xy, min(cruise, top), gains.max_lat_accel_m_s2, loop, laps)
+        _enter_mode(ctx, ent, row, DriveMode.ROUTE)
+        set_path(f, row, path)
+
+    def _apply(self, ctx: StepContext, ent: int, msg: object) -> str:
+        f = ctx.fleet
+        row = f.row_of(ent)
+        name = msg.vehicle
+        if isinstance(msg, SetTarget):
+            values = [*msg.pos_enu_m, *(v for v in (msg.speed_m_s,) if v is not None)]
+            if not all(math.isfinite(v) for v in values):
+                return "target values must be finite numbers"
+            if msg.speed_m_s is not None and msg.speed_m_s <= 0.0:
+                return f"speed must be > 0, got {msg.speed_m_s}"
+            self._give_path(ctx, ent, row, np.array([msg.pos_enu_m[:2]]), msg.speed_m_s, False, 0)
+            ctx.services.note(ctx.sim_time_s, name, f"target set to {tuple(round(v, 2) for v in msg.pos_enu_m[:2])}")
+            return ""
+        if isinstance(msg, DriveRoute):
+            wp = np.asarray(msg.waypoints, dtype=float)
+            if wp.ndim != 2 or wp.shape[1] != 2 or len(wp) == 0 or not np.all(np.isfinite(wp)):
+                return "a route needs at least one finite (x, y) waypoint"
+            if msg.speed_m_s is not None and not (math.isfinite(msg.speed_m_s) and msg.speed_m_s > 0.0):
+                return f"speed must be a finite number > 0, got {msg.speed_m_s}"
+            if msg.loop and len(wp) < 3:
+                return f"a loop needs at least 3 waypoints, got {len(wp)}"
+            self._give_path(ctx, ent, row, wp, msg.speed_m_s, msg.loop, max(0, int(msg.laps)))
+            ctx.services.note(ctx.sim_time_s, name, f"route of {len(wp)} waypoints" + (" (loop)" if msg.loop else ""))
+            return ""
+        if isinstance(msg, Drive):
+            cmd = (msg.throttle, msg.brake, msg.steering)
+            if not all(math.isfinite(v) for v in cmd) or not (-1 <= msg.throttle <= 1 and 0 <= msg.brake <= 1
+                                                              and -1 <= msg.steering <= 1):
+                return "car teleop needs finite throttle in [-1, 1], brake in [0, 1], steering in [-1, 1]"
+            f.drive_cmd[row] = cmd
+            _enter_mode(ctx, ent, row, DriveMode.MANUAL)
+            return ""
+        if isinstance(msg, CmdVel):
+            if not (math.isfinite(msg.forward_m_s) and math.isfinite(msg.yaw_rate_rad_s)):
+                return "cmd_vel values must be finite numbers"
+            top = esper.component_for_entity(ent, CarDynamics).top_speed_m_s
+            if abs(msg.forward_m_s) > top:
+                return f"forward speed {msg.forward_m_s} m/s is beyond the top speed {top} m/s"
+            f.cmd_vel[row] = (msg.forward_m_s, msg.yaw_rate_rad_s)
+            _enter_mode(ctx, ent, row, DriveMode.VELOCITY)
+            return ""
+        if isinstance(msg, Arm):
+            if msg.armed:
+                # released: hold where it is under speed control
+                f.cmd_vel[row] = (0.0, 0.0)
+                _enter_mode(ctx, ent, row, DriveMode.VELOCITY)
+            else:
+                _enter_mode(ctx, ent, row, DriveMode.PARKED)
+            return ""
+        return f"a car does not take {type(msg).__name__} commands"
+
+
+def _enter_mode(ctx: StepContext, ent: int, row: int, mode: DriveMode) -> None:
+    """Switch mode with a bumpless start of the speed integrator (the current throttle/brake continue)."""
+    f = ctx.fleet
+    if f.drive_mode[row] == mode:
+        return
+    if mode in (DriveMode.ROUTE, DriveMode.VELOCITY):
+        dyn = esper.component_for_entity(ent, CarDynamics)
+        gains = _gains(ent)
+        mass = esper.component_for_entity(ent, RigidBody).mass_kg
+        v = float(f.car_speed_m_s[row])
+        direction = math.copysign(1.0, v) if abs(v) > 0.3 else 1.0
+        drive_n = float(drive_torque_n_m(np.array([f.car_throttle[row]]), np.array([v]),
+                                         np.array([dyn.max_drive_torque_n_m]), np.array([dyn.top_speed_m_s]))[0]
+                        ) / dyn.wheel_radius_m
+        brake_n = float(f.car_brake[row]) * 4.0 * dyn.max_brake_torque_n_m / dyn.wheel_radius_m
+        acc_now = (drive_n - direction * brake_n * (abs(v) > 0.3)) / mass
+        speed_sp = v if mode == DriveMode.ROUTE else float(f.cmd_vel[row, 0])
+        integral = (acc_now - gains.gain_speed_p * (speed_sp - v)) / max(gains.gain_speed_i, 1e-9)
+        lim = gains.lim_speed_int_m_s2 / max(gains.gain_speed_i, 1e-9)
+        f.car_speed_int[row] = float(np.clip(integral, -lim, lim)) if gains.gain_speed_i > 0 else 0.0
+    if mode != DriveMode.ROUTE:
+        set_path(f, row, None)
+    f.drive_mode[row] = mode
+    name = esper.component_for_entity(ent, Identity).name
+    ctx.services.note(ctx.sim_time_s, name, f"drive mode {mode.name.lower()}")
+
+
+class _CarRows:
+    """Rows and stacked parameters of every car; re-gathered when the fleet changes."""
+
+    def __init__(self) -> None:
+        self.version = -1
+        self.rows = np.empty(0, dtype=np.intp)
+
+    def refresh(self, ctx: StepContext) -> bool:
+        f = ctx.fleet
+        if f.version == self.version:
+            return self.rows.size > 0
+        declare_car_arrays(f)
+        self.rows, dyns = gather_rows(CarDynamics)
+        ents = f.entity[self.rows]
+        self.dyn = stack_params(dyns, CarDynamics) if dyns else None
+        self.gains = stack_params([_gains(int(e)) for e in ents], CarControllerGains) if dyns else None
+        self.mass = np.array([esper.component_for_entity(int(e), RigidBody).mass_kg for e in ents])
+        self.bodies = [int(b) for b in f.body_id[self.rows]]
+        self.joints = [esper.component_for_entity(int(e), CarBody).joints for e in ents]
+        self.entities = [int(e) for e in ents]
+        self.version = f.version
+        return self.rows.size > 0
+
+
+def _heading(quat_xyzw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Forward unit vectors (N, 3) and yaw (N,) [rad] from ENU/FLU quaternions."""
+    fwd = R_from_quat_xyzw(quat_xyzw)[:, :, 0]
+    return fwd, np.arctan2(fwd[:, 1], fwd[:, 0])
+
+
+class CarGuidanceSystem(esper.Processor):
+    """Pure pursuit along each ROUTE-mode car's path and its speed profile. Phase: GUIDANCE (order 20).
+
+    Look-ahead ``max(lead_min, lead_time * speed)``; speed setpoint: the route speed, limited so the
+    car can brake to each corner's ``sqrt(a_lat R)`` and to 0 at the end. A never-ending loop steps
+    back one lap when it enters its last; an open route ends (PARKED) once the car stops within the
+    arrival radius of its last point. Writes: car_speed_sp_m_s, car_steer_sp_rad, path_segment.
+    """
+
+    phase = Phase.GUIDANCE
+    order = 20
+
+    def __init__(self) -> None:
+        self._cars = _CarRows()
+
+    def process(self, ctx: StepContext) -> None:
+        if not self._cars.refresh(ctx):
+            return
+        f, c = ctx.fleet, self._cars
+        sel = np.flatnonzero(f.drive_mode[c.rows] == DriveMode.ROUTE)
+        if sel.size == 0:
+            return
+        r = c.rows[sel]
+        paths: list[CarPath] = [f.car_path[i] for i in r]
+        width = max(len(p.points_enu_m) for p in paths)
+        route = np.empty((len(r), width, 3))
+        speeds = np.zeros((len(r), width))
+        n_points = np.array([len(p.points_enu_m) for p in paths])
+        for k, p in enumerate(paths):
+            n = len(p.points_enu_m)
+            route[k, :n], route[k, n:] = p.points_enu_m, p.points_enu_m[-1]
+            speeds[k, :n], speeds[k, n:] = p.speeds_m_s, p.speeds_m_s[-1]
+        pos = f.pos_enu_m[r].copy()
+        pos[:, 2] = 0.0
+        fwd, yaw = _heading(f.quat_enu_flu_xyzw[r])
+        v = f.car_speed_m_s[r]
+        gains = c.gains
+        lead = np.maximum(gains.lead_min_m[sel], gains.lead_time_s[sel] * np.abs(v))
+        res = pure_pursuit(pos, route, n_points, f.path_segment[r], np.repeat(speeds[:, :, None], 3, axis=2),
+                           lead, np.zeros(len(r)))
+        seg = res.segment.copy()
+        for k, p in enumerate(paths):
+            if p.period and seg[k] >= p.wrap_from:
+                seg[k] -= p.period
+                f.path_laps[r[k]] += 1
+                name = esper.component_for_entity(c.entities[sel[k]], Identity).name
+                ctx.services.note(ctx.sim_time_s, name, f"route lap {int(f.path_laps[r[k]])} done")
+        f.path_segment[r] = seg
+
+        seg_lengths = np.linalg.norm(np.diff(route, axis=1), axis=2)
+        cum = np.concatenate([np.zeros((len(r), 1)), np.cumsum(seg_lengths, axis=1)], axis=1)
+        s_along = cum[np.arange(len(r)), res.segment] + _along(pos, route, res.segment)
+        cruise = np.array([p.cruise_m_s for p in paths])
+        speed_sp = np.minimum(cruise, route_speed_sp(s_along, cum, speeds, gains.max_decel_m_s2[sel] * 0.6))
+        wheelbase = c.dyn.wheelbase_m[sel]
+        rear_axle = pos - fwd * (wheelbase / 2.0)[:, None]
+        steer = pure_pursuit_steer(res.target_enu_m, rear_axle, yaw, wheelbase)
+
+        # the end of the route: on the last segment, within the arrival radius along the route
+        # (a car that rolled a little past the end counts), and stopped
+        on_last = (res.segment == n_points - 2) & np.array([p.period == 0 for p in paths])
+        along_left = res.dist_to_go_m - res.cross_track_m
+        at_end = on_last & (along_left < gains.arrival_radius_m[sel]) & \
+            (res.dist_to_final_m < 3.0 * gains.arrival_radius_m[sel])
+        done = at_end & (np.abs(v) < STOPPED_SPEED_M_S)
+        speed_sp = np.where(at_end, 0.0, speed_sp)
+        f.car_speed_sp_m_s[r] = speed_sp
+        f.car_steer_sp_rad[r] = np.where(at_end, f.car_steer_rad[r], steer)
+        for k in np.flatnonzero(done):
+            ent = c.entities[sel[k]]
+            f.path_done[r[k]] = True
+            name = esper.component_for_entity(ent, Identity).name
+            ctx.services.note(ctx.sim_time_s, name, "route done")
+            _enter_mode(ctx, ent, int(r[k]), DriveMode.PARKED)
+
+
+def _along(pos: np.ndarray, route: np.ndarray, seg: np.ndarray) -> np.ndarray:
+    """Distance (N,) [m] of each car's projection along its active segment."""
+    m = np.arange(len(seg))
+    a, b = route[m, seg], route[m, seg + 1]
+    d = b - a
+    length = np.linalg.norm(d, axis=1)
+    t = np.clip(np.einsum("ni,ni->n", pos - a, d) / np.maximum(length, 1e-9) ** 2, 0.0, 1.0)
+    return t * length
+
+
+class CarControllerSystem(esper.Processor):
+    """Layer 2 for cars: throttle, brake and steering for every car in one pass. Phase: STABILIZE (order 20).
+
+    PARKED: brake 1. MANUAL: teleop passes through (steering scaled by the speed-dependent limit).
+    VELOCITY: speed PI to ``cmd_vel[0]``, steering from the yaw rate ``cmd_vel[1]``. ROUTE: speed
+    PI to the route's setpoint, steering from pure pursuit. The steering angle is limited so that
+    the inner front wheel stays within ``max_steer_deg`` at rest, less at speed (falling linearly to
+    ``steer_scale_at_50_m_s`` of it at 50 m/s), and slewed at ``max_steer_rate_deg_s``. Also writes
+    car_speed_m_s.
+    """
+
+    phase = Phase.STABILIZE
+    order = 20
+
+    def __init__(self) -> None:
+        self._cars = _CarRows()
+
+    def process(self, ctx: StepContext) -> None:
+        if not self._cars.refresh(ctx):
+            return
+        f, c = ctx.fleet, self._cars
+        r = c.rows
+        dyn, gains = c.dyn, c.gains
+        fwd, _ = _heading(f.quat_enu_flu_xyzw[r])
+        v = np.einsum("ni,ni->n", f.vel_enu_m_s[r], fwd)
+        f.car_speed_m_s[r] = v
+        mode = f.drive_mode[r]
+        yaw_rate = f.rate_flu_rad_s[r, 2]
+
+        speed_sp = np.where(mode == DriveMode.VELOCITY, f.cmd_vel[r, 0],
+                            np.where(mode == DriveMode.ROUTE, f.car_speed_sp_m_s[r], 0.0))
+        rolling_n = dyn.rolling_resistance_coeff * c.mass * GRAVITY_M_S2
+        throttle, brake, integ = speed_to_throttle_brake(
+            speed_sp, v, f.car_speed_int[r], ctx.dt_s, rolling_n, c.mass, dyn.wheel_radius_m,
+            dyn.max_drive_torque_n_m, dyn.max_brake_torque_n_m, dyn.top_speed_m_s, gains)
+        wheel_limit = steer_limit_rad(v, np.deg2rad(dyn.max_steer_deg), dyn.steer_scale_at_50_m_s)
+        limit = bicycle_limit_rad(wheel_limit, dyn.wheelbase_m, dyn.track_m)     # inner wheel at the limit
+        steer_sp = np.where(mode == DriveMode.VELOCITY,
+                            yaw_rate_to_steer(f.cmd_vel[r, 1], yaw_rate, v, dyn.wheelbase_m, gains),
+                            np.where(mode == DriveMode.ROUTE, f.car_steer_sp_rad[r], 0.0))
+        manual = mode == DriveMode.MANUAL
+        cmd = f.drive_cmd[r]
+        throttle = np.where(manual, cmd[:, 0], throttle)
+        brake = np.where(manual, cmd[:, 1], brake)
+        steer_sp = np.where(manual, cmd[:, 2] * limit, steer_sp)
+        parked = mode == DriveMode.PARKED
+        throttle = np.where(parked, 0.0, throttle)
+        brake = np.where(parked, 1.0, brake)
+        controlled = (mode == DriveMode.VELOCITY) | (mode == DriveMode.ROUTE)
+        f.car_speed_int[r] = np.where(controlled, integ, f.car_speed_int[r])
+
+        steer_sp = np.clip(steer_sp, -limit, limit)
+        slew = np.deg2rad(dyn.max_steer_rate_deg_s) * ctx.dt_s
+        prev = f.car_steer_rad[r]
+        f.car_steer_rad[r] = prev + np.clip(steer_sp - prev, -slew, slew)
+        f.car_throttle[r] = throttle
+        f.car_brake[r] = brake
+
+
+class CarActuationSystem(esper.Processor):
+    """Apply suspension, steering, drive and brakes to every car body. Phase: ACTUATE (order 30).
+
+    Suspension per wheel: ``-k x - c x' - m g / 4`` along the chassis z axis (static rest at x = 0).
+    Drive: the torque of :func:`~unetyemu_ecs.control.car.drive_torque_n_m`, split over the rear
+    wheels. Brakes: ``brake * max_brake_torque`` plus rolling resistance ``C_rr m g r / 4`` on
+    every wheel. Steering: Ackermann angles of the applied bicycle angle.
+    """
+
+    phase = Phase.ACTUATE
+    order = 30
+
+    def __init__(self) -> None:
+        self._cars = _CarRows()
+
+    def process(self, ctx: StepContext) -> None:
+        if not self._cars.refresh(ctx):
+            return
+        f, c = ctx.fleet, self._cars
+        r = c.rows
+        dyn = c.dyn
+        cid = ctx.physics.id
+        drive = drive_torque_n_m(f.car_throttle[r], f.car_speed_m_s[r], dyn.max_drive_torque_n_m, dyn.top_speed_m_s)
+        corner_weight_n = c.mass * GRAVITY_M_S2 / 4.0
+        rolling = dyn.rolling_resistance_coeff * corner_weight_n * dyn.wheel_radius_m
+        brake = f.car_brake[r] * dyn.max_brake_torque_n_m + rolling
+        steer = ackermann_angles(f.car_steer_rad[r], dyn.wheelbase_m, dyn.track_m)
+        k, damp = dyn.suspension_stiffness_n_m, dyn.suspension_damping_n_s_m
+        for i, (body, joints) in enumerate(zip(c.bodies, c.joints)):
+            x, xdot = read_suspension(cid, body, joints)
+            spring = -k[i] * x - damp[i] * xdot - corner_weight_n[i]
+            wheel_torque = np.array([0.0, 0.0, drive[i] / 2.0, drive[i] / 2.0])
+            apply_car_controls(cid, body, joints, spring, steer[i], wheel_torque, np.full(4, brake[i]))
+
+
+__all__ = ["CarActuationSystem", "CarCommandSystem", "CarControllerSystem", "CarGuidanceSystem"]
