@@ -25,6 +25,7 @@ from .physics.car_body import CarGeometry, create_car_body
 from .physics.client import PhysicsClient
 from .physics.static_scene import build_static_scene
 from .plugins import Registry
+from .systems.car_state import DriveMode
 from .systems.commands import InboxSystem, UnclaimedCommandSystem
 from .systems.impacts import ImpactMonitorSystem
 from .systems.outputs import TrajectoryLogSystem
@@ -328,6 +329,16 @@ class Simulation:
         with self.ecs.active():
             rt = esper.try_component(self.entity(name), MissionRuntime)
             return None if rt is None else rt.status()
+
+    def drive_status(self, name: str) -> dict[str, Any]:
+        """Status of car ``name``: drive mode, route state ("driving", "done" or "" without one), laps done."""
+        self._car(name)
+        f, row = self.fleet, self.row(name)
+        if not hasattr(f, "drive_mode"):
+            return {"mode": "parked", "route": "", "laps": 0}
+        mode = DriveMode(int(f.drive_mode[row]))
+        route = "done" if f.path_done[row] else ("driving" if mode == DriveMode.ROUTE else "")
+        return {"mode": mode.name.lower(), "route": route, "laps": int(f.path_laps[row])}
 
     @property
     def events(self) -> list[tuple[float, str, str]]:

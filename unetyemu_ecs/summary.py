@@ -30,6 +30,8 @@ def build_summary(sim: Simulation, stats: RunStats) -> dict[str, Any]:
             item["mission"] = status
             item["energy_used_wh"] = round(float(sim.fleet.energy_used_j[row]) / 3600.0, 4)
             item["soc_frac"] = round(float(sim.fleet.soc_frac[row]), 5)
+        if ent.kind == "car" and hasattr(sim.fleet, "drive_mode"):
+            item["drive"] = sim.drive_status(ent.name)
         entities.append(item)
     return {
         "world": d.name,
@@ -69,7 +71,7 @@ def format_summary(summary: dict[str, Any]) -> str:
             energy = f"{e['energy_used_wh']:>9.2f}" if "energy_used_wh" in e else f"{'-':>9}"
             lines.append(f"  {e['name']:<{w}}  {e['kind']:<9}  {e['preset'] or '-':<7}  "
                          f"{e['distance_m']:>10.2f}  {energy}  {e['impacts']:>7}  {f'({x:.2f}, {y:.2f}, {z:.2f})':<26}  "
-                         f"{_mission_text(e.get('mission'))}")
+                         f"{_mission_text(e.get('mission')) if 'drive' not in e else _drive_text(e['drive'])}")
     impacts = [e for e in summary.get("events", []) if e["text"].startswith("impact")]
     for e in impacts[:10]:
         lines.append(f"  t={e['time_s']:.2f} s {e['entity']}: {e['text']}")
@@ -86,6 +88,13 @@ def _mission_text(status: dict[str, Any] | None) -> str:
         text += f" (step {status['step'] + 1}/{status['steps']} {status['step_type']})"
     elif status["state"] in ("failed", "cancelled"):
         text += f" at step {status['step'] + 1} {status['step_type']}: {status['reason']}"
+    return text
+
+
+def _drive_text(status: dict[str, Any]) -> str:
+    text = f"{status['mode']}"
+    if status["route"]:
+        text += f" ({status['route']}, {status['laps']} laps)" if status["laps"] else f" ({status['route']})"
     return text
 
 

@@ -13,7 +13,8 @@ The suspension is a spring-damper applied as a joint force every step, ``-k x - 
 roll in turns come from the physics. Drive torque acts on the rear wheel joints; brakes are each
 wheel's velocity motor with target 0 and a maximum torque equal to the brake torque (PyBullet
 applies exactly up to that torque to stop the wheel, and holds a stopped car); steering is a
-position servo. Tyre/road friction is PyBullet's contact friction (Bullet multiplies the two
+position servo. A parked car at rest sleeps (Bullet deactivation) until touched or driven.
+Tyre/road friction is PyBullet's contact friction (Bullet multiplies the two
 bodies' coefficients: ``tyre_friction x 0.9`` on the road).
 """
 
@@ -148,25 +149,55 @@ def read_wheel_rates(client_id: int, body: int, joints: CarJoints) -> np.ndarray
     return np.array([s[1] for s in p.getJointStates(body, list(joints.wheels), physicsClientId=client_id)])
 
 
-def apply_car_controls(client_id: int, body: int, joints: CarJoints, suspension_force_n: np.ndarray,
-                       steer_rad: np.ndarray, wheel_torque_n_m: np.ndarray, brake_torque_n_m: np.ndarray) -> None:
-    """Command one car for the next step.
+class CarCommander:
+    """Send one car's joint commands to PyBullet with as few calls as possible.
 
-    suspension_force_n : (4,) [N] force on each wheel carrier along chassis +z
-    steer_rad : (2,) [rad] front-left, front-right wheel angles (positive = left)
-    wheel_torque_n_m : (4,) [N m] drive torque on each wheel (positive = forward)
-    brake_torque_n_m : (4,) [N m] maximum braking torque of each wheel (>= 0)
+    Forces (suspension springs, drive torque) are per step in PyBullet and go out every step in one
+    call; steering targets and brake torques are motor settings that persist, so they are sent only
+    when they change. Parked cars at rest may sleep (Bullet deactivation: no cost until something
+    touches them); :meth:`wake` wakes a car that is about to be driven.
     """
-    cid = client_id
-    p.setJointMotorControlArray(body, list(joints.suspension), p.TORQUE_CONTROL,
-                                forces=suspension_force_n.tolist(), physicsClientId=cid)
-    p.setJointMotorControlArray(body, list(joints.steering), p.POSITION_CONTROL, targetPositions=steer_rad.tolist(),
-                                forces=[STEER_SERVO_TORQUE_N_M] * 2, physicsClientId=cid)
-    p.setJointMotorControlArray(body, list(joints.wheels), p.VELOCITY_CONTROL, targetVelocities=[0.0] * 4,
-                                forces=brake_torque_n_m.tolist(), physicsClientId=cid)
-    p.setJointMotorControlArray(body, list(joints.wheels), p.TORQUE_CONTROL, forces=wheel_torque_n_m.tolist(),
-                                physicsClientId=cid)
+
+    def __init__(self, client_id: int, body: int, joints: CarJoints) -> None:
+        self.cid, self.body, self.joints = client_id, body, joints
+        self._torque_joints = list(joints.suspension) + list(joints.wheels)
+        self._last_steer: tuple[float, float] | None = None
+        self._last_brake: tuple[float, ...] | None = None
+        self.allow_sleep(True)
+
+    def allow_sleep(self, allowed: bool) -> None:
+        if allowed:
+            p.changeDynamics(self.body, -1, activationState=p.ACTIVATION_STATE_ENABLE_SLEEPING,
+                             physicsClientId=self.cid)
+        else:
+            p.changeDynamics(self.body, -1, activationState=p.ACTIVATION_STATE_DISABLE_SLEEPING,
+                             physicsClientId=self.cid)
+            p.changeDynamics(self.body, -1, activationState=p.ACTIVATION_STATE_WAKE_UP, physicsClientId=self.cid)
+
+    def apply(self, suspension_force_n: np.ndarray, steer_rad: np.ndarray, wheel_torque_n_m: np.ndarray,
+              brake_torque_n_m: np.ndarray) -> None:
+        """Command the car for the next step.
+
+        suspension_force_n : (4,) [N] force on each wheel carrier along chassis +z (fl, fr, rl, rr)
+        steer_rad : (2,) [rad] front-left, front-right wheel angles (positive = left)
+        wheel_torque_n_m : (4,) [N m] drive torque on each wheel (positive = forward)
+        brake_torque_n_m : (4,) [N m] maximum braking torque of each wheel (>= 0)
+        """
+        steer = (round(float(steer_rad[0]), 6), round(float(steer_rad[1]), 6))
+        if steer != self._last_steer:
+            p.setJointMotorControlArray(self.body, list(self.joints.steering), p.POSITION_CONTROL,
+                                        targetPositions=list(steer), forces=[STEER_SERVO_TORQUE_N_M] * 2,
+                                        physicsClientId=self.cid)
+            self._last_steer = steer
+        brake = tuple(round(float(b), 3) for b in brake_torque_n_m)
+        if brake != self._last_brake:
+            p.setJointMotorControlArray(self.body, list(self.joints.wheels), p.VELOCITY_CONTROL,
+                                        targetVelocities=[0.0] * 4, forces=list(brake), physicsClientId=self.cid)
+            self._last_brake = brake
+        p.setJointMotorControlArray(self.body, self._torque_joints, p.TORQUE_CONTROL,
+                                    forces=[*suspension_force_n.tolist(), *wheel_torque_n_m.tolist()],
+                                    physicsClientId=self.cid)
 
 
-__all__ = ["WHEELS", "CarGeometry", "CarJoints", "apply_car_controls", "create_car_body", "read_suspension",
+__all__ = ["WHEELS", "CarCommander", "CarGeometry", "CarJoints", "create_car_body", "read_suspension",
            "read_wheel_rates"]

@@ -23,7 +23,7 @@ from ..control.car import (CarControllerGains, ackermann_angles, bicycle_limit_r
 from ..control.pursuit import pure_pursuit
 from ..frames import R_from_quat_xyzw
 from ..phases import Phase
-from ..physics.car_body import apply_car_controls, read_suspension
+from ..physics.car_body import CarCommander, read_suspension
 from ..transport.bus import Arm, CmdVel, Drive, DriveRoute, SetTarget
 from ..units import GRAVITY_M_S2
 from ..world import StepContext
@@ -32,6 +32,7 @@ from .commands import claim
 from .rows import gather_rows, stack_params
 
 STOPPED_SPEED_M_S = 0.2        # a route is done when the car is this slow within the arrival radius
+ROUTE_FOLLOWING_HZ = 60.0      # pure pursuit and the speed profile (the speed and steering loops run every step)
 
 
 def _gains(ent: int) -> CarControllerGains:
@@ -190,7 +191,8 @@ class CarGuidanceSystem(esper.Processor):
     Look-ahead ``max(lead_min, lead_time * speed)``; speed setpoint: the route speed, limited so the
     car can brake to each corner's ``sqrt(a_lat R)`` and to 0 at the end. A never-ending loop steps
     back one lap when it enters its last; an open route ends (PARKED) once the car stops within the
-    arrival radius of its last point. Writes: car_speed_sp_m_s, car_steer_sp_rad, path_segment.
+    arrival radius of its last point. Runs at :data:`ROUTE_FOLLOWING_HZ` (and at once when a route
+    changes). Writes: car_speed_sp_m_s, car_steer_sp_rad, path_segment.
     """
 
     phase = Phase.GUIDANCE
@@ -198,6 +200,8 @@ class CarGuidanceSystem(esper.Processor):
 
     def __init__(self) -> None:
         self._cars = _CarRows()
+        self._key: tuple = ()
+        self._packed: tuple = ()
 
     def process(self, ctx: StepContext) -> None:
         if not self._cars.refresh(ctx):
@@ -207,23 +211,21 @@ class CarGuidanceSystem(esper.Processor):
         if sel.size == 0:
             return
         r = c.rows[sel]
-        paths: list[CarPath] = [f.car_path[i] for i in r]
-        width = max(len(p.points_enu_m) for p in paths)
-        route = np.empty((len(r), width, 3))
-        speeds = np.zeros((len(r), width))
-        n_points = np.array([len(p.points_enu_m) for p in paths])
-        for k, p in enumerate(paths):
-            n = len(p.points_enu_m)
-            route[k, :n], route[k, n:] = p.points_enu_m, p.points_enu_m[-1]
-            speeds[k, :n], speeds[k, n:] = p.speeds_m_s, p.speeds_m_s[-1]
+        key = (tuple(r.tolist()), tuple(f.path_stamp[r].tolist()))
+        decimation = max(1, round(1.0 / (ROUTE_FOLLOWING_HZ * ctx.dt_s)))
+        if key == self._key and ctx.step % decimation:
+            return
+        if key != self._key:                       # routes changed: rebuild the padded arrays once
+            self._key = key
+            self._packed = _pack_paths([f.car_path[i] for i in r])
+        paths, route, speeds, n_points, cum, cruise = self._packed
         pos = f.pos_enu_m[r].copy()
         pos[:, 2] = 0.0
         fwd, yaw = _heading(f.quat_enu_flu_xyzw[r])
         v = f.car_speed_m_s[r]
         gains = c.gains
         lead = np.maximum(gains.lead_min_m[sel], gains.lead_time_s[sel] * np.abs(v))
-        res = pure_pursuit(pos, route, n_points, f.path_segment[r], np.repeat(speeds[:, :, None], 3, axis=2),
-                           lead, np.zeros(len(r)))
+        res = pure_pursuit(pos, route, n_points, f.path_segment[r], speeds, lead, np.zeros(len(r)))
         seg = res.segment.copy()
         for k, p in enumerate(paths):
             if p.period and seg[k] >= p.wrap_from:
@@ -233,11 +235,8 @@ class CarGuidanceSystem(esper.Processor):
                 ctx.services.note(ctx.sim_time_s, name, f"route lap {int(f.path_laps[r[k]])} done")
         f.path_segment[r] = seg
 
-        seg_lengths = np.linalg.norm(np.diff(route, axis=1), axis=2)
-        cum = np.concatenate([np.zeros((len(r), 1)), np.cumsum(seg_lengths, axis=1)], axis=1)
         s_along = cum[np.arange(len(r)), res.segment] + _along(pos, route, res.segment)
-        cruise = np.array([p.cruise_m_s for p in paths])
-        speed_sp = np.minimum(cruise, route_speed_sp(s_along, cum, speeds, gains.max_decel_m_s2[sel] * 0.6))
+        speed_sp = np.minimum(cruise, route_speed_sp(s_along, cum, speeds[:, :, 0], gains.max_decel_m_s2[sel] * 0.6))
         wheelbase = c.dyn.wheelbase_m[sel]
         rear_axle = pos - fwd * (wheelbase / 2.0)[:, None]
         steer = pure_pursuit_steer(res.target_enu_m, rear_axle, yaw, wheelbase)
@@ -254,10 +253,26 @@ class CarGuidanceSystem(esper.Processor):
         f.car_steer_sp_rad[r] = np.where(at_end, f.car_steer_rad[r], steer)
         for k in np.flatnonzero(done):
             ent = c.entities[sel[k]]
-            f.path_done[r[k]] = True
             name = esper.component_for_entity(ent, Identity).name
             ctx.services.note(ctx.sim_time_s, name, "route done")
             _enter_mode(ctx, ent, int(r[k]), DriveMode.PARKED)
+            f.path_done[r[k]] = True                   # after parking (which clears the path)
+
+
+def _pack_paths(paths: list[CarPath]) -> tuple:
+    """Padded (N, W, 3) points, (N, W) speeds, point counts, cumulative lengths and cruise speeds."""
+    width = max(len(p.points_enu_m) for p in paths)
+    route = np.empty((len(paths), width, 3))
+    speeds = np.zeros((len(paths), width))
+    n_points = np.array([len(p.points_enu_m) for p in paths])
+    for k, p in enumerate(paths):
+        n = len(p.points_enu_m)
+        route[k, :n], route[k, n:] = p.points_enu_m, p.points_enu_m[-1]
+        speeds[k, :n], speeds[k, n:] = p.speeds_m_s, p.speeds_m_s[-1]
+    seg_lengths = np.linalg.norm(np.diff(route, axis=1), axis=2)
+    cum = np.concatenate([np.zeros((len(paths), 1)), np.cumsum(seg_lengths, axis=1)], axis=1)
+    cruise = np.array([p.cruise_m_s for p in paths])
+    return paths, route, np.repeat(speeds[:, :, None], 3, axis=2), n_points, cum, cruise
 
 
 def _along(pos: np.ndarray, route: np.ndarray, seg: np.ndarray) -> np.ndarray:
@@ -343,6 +358,8 @@ class CarActuationSystem(esper.Processor):
 
     def __init__(self) -> None:
         self._cars = _CarRows()
+        self._commanders: dict[int, CarCommander] = {}      # body id -> commander
+        self._was_parked = np.zeros(0, dtype=bool)
 
     def process(self, ctx: StepContext) -> None:
         if not self._cars.refresh(ctx):
@@ -351,6 +368,14 @@ class CarActuationSystem(esper.Processor):
         r = c.rows
         dyn = c.dyn
         cid = ctx.physics.id
+        commanders = [self._commanders.get(b) or self._commanders.setdefault(b, CarCommander(cid, b, j))
+                      for b, j in zip(c.bodies, c.joints)]
+        parked = f.drive_mode[r] == DriveMode.PARKED
+        if self._was_parked.shape != parked.shape:
+            self._was_parked = np.ones_like(parked)
+        for i in np.flatnonzero(self._was_parked != parked):
+            commanders[i].allow_sleep(bool(parked[i]))     # only a parked car may sleep
+        self._was_parked = parked
         drive = drive_torque_n_m(f.car_throttle[r], f.car_speed_m_s[r], dyn.max_drive_torque_n_m, dyn.top_speed_m_s)
         corner_weight_n = c.mass * GRAVITY_M_S2 / 4.0
         rolling = dyn.rolling_resistance_coeff * corner_weight_n * dyn.wheel_radius_m
@@ -361,7 +386,7 @@ class CarActuationSystem(esper.Processor):
             x, xdot = read_suspension(cid, body, joints)
             spring = -k[i] * x - damp[i] * xdot - corner_weight_n[i]
             wheel_torque = np.array([0.0, 0.0, drive[i] / 2.0, drive[i] / 2.0])
-            apply_car_controls(cid, body, joints, spring, steer[i], wheel_torque, np.full(4, brake[i]))
+            commanders[i].apply(spring, steer[i], wheel_torque, np.full(4, brake[i]))
 
 
 __all__ = ["CarActuationSystem", "CarCommandSystem", "CarControllerSystem", "CarGuidanceSystem"]

@@ -102,7 +102,8 @@ class ImpactMonitorSystem(esper.Processor):
         movers = [body for body in pair if body in self._row_of_body]
         for body in movers:
             ctx.fleet.impacts[self._row_of_body[body]] += 1
-        first = movers[0]
+        # told from the side that was moving faster (the one that hit)
+        first = max(movers, key=lambda body: float(np.linalg.norm(self._velocity(body))))
         other = b if first == a else a
         where = ", ".join(f"{c:.1f}" for c in point)
         ctx.services.note(ctx.sim_time_s + ctx.dt_s, self._name_of_row[self._row_of_body[first]],

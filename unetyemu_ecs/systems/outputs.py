@@ -15,6 +15,7 @@ from ..frames import euler_rpy_from_quat_xyzw
 from ..geodesy import GeodeticOrigin, LocalTangentPlane
 from ..phases import Phase
 from ..world import StepContext
+from .car_state import DriveMode, declare_car_arrays
 from .flight_state import FlightMode, declare_flight_arrays
 
 POSE_COLUMNS = ("time_s", "x_m", "y_m", "z_m", "roll_deg", "pitch_deg", "yaw_deg", "lat_deg", "lon_deg",
@@ -22,6 +23,7 @@ POSE_COLUMNS = ("time_s", "x_m", "y_m", "z_m", "roll_deg", "pitch_deg", "yaw_deg
 FLIGHT_COLUMNS = ("mode", "thrust_fl_n", "thrust_fr_n", "thrust_br_n", "thrust_bl_n", "thrust_total_n", "power_w",
                   "energy_used_wh", "battery_wh", "soc_frac", "remaining_time_s", "payload_kg", "mission_step",
                   "mission_step_type")
+CAR_COLUMNS = ("drive_mode", "throttle", "brake", "steer_deg", "speed_fwd_m_s", "speed_sp_m_s")
 
 
 class TrajectoryLogSystem(esper.Processor):
@@ -41,7 +43,7 @@ class TrajectoryLogSystem(esper.Processor):
         self._ltp = LocalTangentPlane(origin)
         self._files: list[IO[str]] = []
         self._writers: list[csv.writer] = []
-        self._flight: dict[int, bool] = {}      # writer index -> quadrotor (flight columns)
+        self._kind: dict[int, str] = {}         # writer index -> entity kind (which extra columns)
         self._names: list[str] = []
         self._rows = np.empty(0, dtype=np.intp)
         self._seen_version = -1
@@ -57,8 +59,9 @@ class TrajectoryLogSystem(esper.Processor):
             path = self.out_dir / f"{name}.csv"
             fh = open(path, "w", newline="", encoding="utf-8")  # noqa: SIM115 (closed in close())
             w = csv.writer(fh)
-            w.writerow(POSE_COLUMNS + (FLIGHT_COLUMNS if kinds[name] == "quadrotor" else ()))
-            self._flight[len(self._files)] = kinds[name] == "quadrotor"
+            extra = {"quadrotor": FLIGHT_COLUMNS, "car": CAR_COLUMNS}.get(kinds[name], ())
+            w.writerow(POSE_COLUMNS + extra)
+            self._kind[len(self._files)] = kinds[name]
             self._names.append(name)
             self.paths[name] = path
             self._files.append(fh)
@@ -73,6 +76,7 @@ class TrajectoryLogSystem(esper.Processor):
         f = ctx.fleet
         if f.version != self._seen_version:
             declare_flight_arrays(f)
+            declare_car_arrays(f)
             self._gather()
             self._seen_version = f.version
         r = self._rows
@@ -87,8 +91,11 @@ class TrajectoryLogSystem(esper.Processor):
             row = [f"{time_s:.4f}", *(f"{x:.4f}" for x in pos[k]), *(f"{a:.3f}" for a in rpy_deg[k]),
                    f"{lat[k]:.9f}", f"{lon[k]:.9f}", f"{alt[k]:.4f}", *(f"{v:.4f}" for v in vel[k]),
                    f"{speed[k]:.4f}"]
-            if self._flight[wi]:
+            kind = self._kind[wi]
+            if kind == "quadrotor":
                 row += self._flight_columns(f, int(r[k]), self._names[wi])
+            elif kind == "car":
+                row += self._car_columns(f, int(r[k]))
             self._writers[wi].writerow(row)
         for wi in set(self._writer_idx):
             self._files[wi].flush()
@@ -105,6 +112,12 @@ class TrajectoryLogSystem(esper.Processor):
                 f"{thrust.sum():.4f}", f"{f.power_w[row]:.3f}", f"{f.energy_used_j[row] / 3600.0:.5f}",
                 f"{f.energy_j[row] / 3600.0:.5f}", f"{f.soc_frac[row]:.6f}",
                 f"{min(f.remaining_time_s[row], 1e9):.1f}", f"{f.payload_kg[row]:.3f}", str(step), step_type]
+
+    @staticmethod
+    def _car_columns(f, row: int) -> list[str]:
+        return [DriveMode(int(f.drive_mode[row])).name.lower(), f"{f.car_throttle[row]:.4f}",
+                f"{f.car_brake[row]:.4f}", f"{np.rad2deg(f.car_steer_rad[row]):.3f}",
+                f"{f.car_speed_m_s[row]:.4f}", f"{f.car_speed_sp_m_s[row]:.4f}"]
 
     def process(self, ctx: StepContext) -> None:
         if (ctx.step + 1) % self.decimation == 0:
