@@ -280,3 +280,19 @@ def test_bad_car_commands_raise_and_drone_commands_on_a_car_are_rejected_without
         sim.step(5)
         assert any(who == "c1" and "rejected cmd_vel" in text and "top speed" in text for _, who, text in sim.events)
         assert sim.fleet.drive_mode[sim.row("c1")] == DriveMode.PARKED
+
+
+def test_a_car_driven_into_a_building_stops_at_its_wall_upright_and_the_impact_names_it():
+    extra = "  buildings: [{center_m: [30.0, 0.0], size_m: [10.0, 20.0], height_m: 12.0}]"
+    text = world(car("c1"), extra="").replace("scene: {generator: none, ground_size_m: 600}",
+                                              "scene:\n  generator: none\n  ground_size_m: 600\n" + extra)
+    with Simulation(load_world_text(text)) as sim:
+        sim.run(duration=0.5)
+        sim.cmd_vel("c1", 6.0, 0.0)
+        sim.run(duration=8.0)
+        impacts = [t for _, who, t in sim.events if who == "c1" and t.startswith("impact with building")]
+        assert len(impacts) == 1, sim.events
+        # the wall is at x = 25; the car's nose (2.25 m ahead of its centre) stops there
+        assert sim.position_enu_m("c1")[0] == pytest.approx(25.0 - 2.25, abs=0.3)
+        roll, pitch, _ = p.getEulerFromQuaternion(sim.attitude_enu_flu_xyzw("c1").tolist())
+        assert abs(roll) < math.radians(5) and abs(pitch) < math.radians(5)

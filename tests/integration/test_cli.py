@@ -44,9 +44,14 @@ def test_run_urban_delivery_headless_prints_summary_and_writes_logs(tmp_path):
         header = next(csv.reader(fh))
     assert {"thrust_fl_n", "power_w", "soc_frac", "remaining_time_s", "payload_kg", "mission_step"} <= set(header)
     with open(out / "truck1.csv", newline="") as fh:
-        assert "thrust_fl_n" not in next(csv.reader(fh))
-    # AND the parked truck stays where it was put (resting on the road)
-    assert abs(float(rows[-1]["z_m"]) - float(rows[0]["z_m"])) < 0.05
+        truck = list(csv.DictReader(fh))
+    assert "thrust_fl_n" not in truck[0] and {"drive_mode", "throttle", "brake", "steer_deg"} <= set(truck[0])
+    # AND the truck drives its route on the road (level, moving), while a parked car stays put
+    assert truck[-1]["drive_mode"] == "route" and float(truck[-1]["x_m"]) - float(truck[0]["x_m"]) > 30.0
+    assert abs(float(truck[-1]["z_m"]) - float(truck[0]["z_m"])) < 0.05
+    with open(out / "car1.csv", newline="") as fh:
+        car = list(csv.DictReader(fh))
+    assert car[-1]["drive_mode"] == "parked" and abs(float(car[-1]["x_m"]) - float(car[0]["x_m"])) < 0.01
     # AND the summary reports each drone's mission, distance and energy
     d1 = next(e for e in summary["entities"] if e["name"] == "drone1")
     assert d1["mission"]["mission"] == "rooftop_delivery" and d1["energy_used_wh"] > 0 and d1["distance_m"] > 1

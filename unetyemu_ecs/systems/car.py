@@ -32,6 +32,8 @@ from .commands import claim
 from .rows import gather_rows, stack_params
 
 STOPPED_SPEED_M_S = 0.2        # a route is done when the car is this slow within the arrival radius
+ASLEEP_AFTER_S = 3.0           # a parked car still for this long is asleep in Bullet (its 2 s deactivation time)
+STILL_M_S = 0.005              # ... where "still" means base speed and turn rate below this [m/s, rad/s]
 ROUTE_FOLLOWING_HZ = 60.0      # pure pursuit and the speed profile (the speed and steering loops run every step)
 
 
@@ -350,7 +352,8 @@ class CarActuationSystem(esper.Processor):
     Suspension per wheel: ``-k x - c x' - m g / 4`` along the chassis z axis (static rest at x = 0).
     Drive: the torque of :func:`~unetyemu_ecs.control.car.drive_torque_n_m`, split over the rear
     wheels. Brakes: ``brake * max_brake_torque`` plus rolling resistance ``C_rr m g r / 4`` on
-    every wheel. Steering: Ackermann angles of the applied bicycle angle.
+    every wheel. Steering: Ackermann angles of the applied bicycle angle. A parked car that has been
+    still for :data:`ASLEEP_AFTER_S` sleeps in Bullet and is skipped until it moves again.
     """
 
     phase = Phase.ACTUATE
@@ -360,6 +363,7 @@ class CarActuationSystem(esper.Processor):
         self._cars = _CarRows()
         self._commanders: dict[int, CarCommander] = {}      # body id -> commander
         self._was_parked = np.zeros(0, dtype=bool)
+        self._still_s = np.zeros(0)                        # how long each car has been parked and still [s]
 
     def process(self, ctx: StepContext) -> None:
         if not self._cars.refresh(ctx):
@@ -376,6 +380,12 @@ class CarActuationSystem(esper.Processor):
         for i in np.flatnonzero(self._was_parked != parked):
             commanders[i].allow_sleep(bool(parked[i]))     # only a parked car may sleep
         self._was_parked = parked
+        still = parked & (np.linalg.norm(f.vel_enu_m_s[r], axis=1) < STILL_M_S) & \
+            (np.linalg.norm(f.rate_enu_rad_s[r], axis=1) < STILL_M_S)
+        if self._still_s.shape != still.shape:
+            self._still_s = np.zeros(still.shape)
+        self._still_s = np.where(still, self._still_s + ctx.dt_s, 0.0)
+        asleep = self._still_s > ASLEEP_AFTER_S            # Bullet does not integrate it: nothing to send
         drive = drive_torque_n_m(f.car_throttle[r], f.car_speed_m_s[r], dyn.max_drive_torque_n_m, dyn.top_speed_m_s)
         corner_weight_n = c.mass * GRAVITY_M_S2 / 4.0
         rolling = dyn.rolling_resistance_coeff * corner_weight_n * dyn.wheel_radius_m
@@ -383,6 +393,8 @@ class CarActuationSystem(esper.Processor):
         steer = ackermann_angles(f.car_steer_rad[r], dyn.wheelbase_m, dyn.track_m)
         k, damp = dyn.suspension_stiffness_n_m, dyn.suspension_damping_n_s_m
         for i, (body, joints) in enumerate(zip(c.bodies, c.joints)):
+            if asleep[i]:
+                continue
             x, xdot = read_suspension(cid, body, joints)
             spring = -k[i] * x - damp[i] * xdot - corner_weight_n[i]
             wheel_torque = np.array([0.0, 0.0, drive[i] / 2.0, drive[i] / 2.0])
