@@ -81,7 +81,9 @@ class Simulation:
         self._mesh = None
         self._log: TrajectoryLogSystem | None = None
         self.inbox = Inbox()
-        self.services = SimServices(world.layout, self.inbox, self._entities, [])
+        self.services = SimServices(world.layout, self.inbox, self._entities, [],
+                                    gravity_enu_m_s2=tuple(spec.gravity_m_s2),
+                                    origin=GeodeticOrigin(spec.origin.lat_deg, spec.origin.lon_deg, spec.origin.alt_m))
         self.ecs = EcsWorld(label=world.name)
         self.physics: PhysicsClient | None = None
         try:
@@ -179,6 +181,7 @@ class Simulation:
         """Advance ``n`` physics steps, running every phase in order each step."""
         with self.ecs.active():
             for _ in range(int(n)):
+                self.services.sensors.this_step.clear()
                 self.ecs.process(self._context())
                 self.step_count += 1
 
@@ -339,6 +342,13 @@ class Simulation:
         mode = DriveMode(int(f.drive_mode[row]))
         route = "done" if f.path_done[row] else ("driving" if mode == DriveMode.ROUTE else "")
         return {"mode": mode.name.lower(), "route": route, "laps": int(f.path_laps[row])}
+
+    def sensor(self, vehicle: str, key: str) -> Any:
+        """The newest message of sensor ``key`` (``imu``, ``gps``, ``lidar``...) on ``vehicle``, or None
+        before its first sample. A ROS 2 Jazzy message object (see :mod:`unetyemu_ecs.sensors.messages`)."""
+        self.entity(vehicle)
+        sample = self.services.sensors.latest.get((vehicle, key))
+        return None if sample is None else sample.msg
 
     @property
     def events(self) -> list[tuple[float, str, str]]:

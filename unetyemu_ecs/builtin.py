@@ -9,7 +9,11 @@ from .control.attitude import StabilizerGains
 from .control.car import CarControllerGains
 from .control.position import GuidanceGains
 from .mission import MissionSpec
-from .plugins import ComponentPlugin
+from .plugins import ComponentPlugin, SensorPlugin
+from .sensors.battery import BatterySensor, BatterySystem
+from .sensors.gps import GpsSensor, GpsSystem
+from .sensors.imu import ImuSensor, ImuSystem
+from .sensors.odometry import OdometrySensor, OdometrySystem
 from .systems.actuate import AeroDragSystem
 from .systems.car import CarActuationSystem, CarCommandSystem, CarControllerSystem, CarGuidanceSystem
 from .systems.commands import FlightCommandSystem
@@ -58,3 +62,12 @@ CAR_CONTROLLER = ComponentPlugin(component=CarControllerGains, applies_to=CAR,
                                  summary="speed PI, course control and route-following parameters")
 CAR_ROUTE = ComponentPlugin(component=CarRoute, applies_to=CAR,
                             summary="route driven from t = 0: waypoints [{x, y}], speed_m_s, loop, laps")
+
+IMU = SensorPlugin(component=ImuSensor, system=ImuSystem,
+                   summary="sensor_msgs/Imu: body rates, specific force (+9.81 up at rest), orientation; noise, bias walk")
+GPS = SensorPlugin(component=GpsSensor, system=GpsSystem,
+                   summary="sensor_msgs/NavSatFix from ENU by WGS84 (via ECEF); optional noise")
+BATTERY = SensorPlugin(component=BatterySensor, system=BatterySystem, applies_to=QUADROTOR,
+                       summary="sensor_msgs/BatteryState of the drone's energy model")
+ODOMETRY = SensorPlugin(component=OdometrySensor, system=OdometrySystem,
+                        summary="nav_msgs/Odometry, ground truth, twist in base_link")

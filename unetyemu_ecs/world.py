@@ -21,9 +21,17 @@ from .phases import Phase, priority
 
 if TYPE_CHECKING:
     from .fleet import FleetState
+    from .geodesy import GeodeticOrigin
+    from .sensors.base import SensorOutputs
     from .physics.client import PhysicsClient
     from .scene.primitives import SceneLayout
     from .transport.bus import Inbox
+
+
+def _sensor_outputs() -> SensorOutputs:
+    from .sensors.base import SensorOutputs
+
+    return SensorOutputs()
 
 
 @dataclass
@@ -37,6 +45,9 @@ class SimServices:
     entities : world-file name -> esper entity id
     events : (sim_time_s, vehicle, message) notices of rare events (mission steps, payload), in order
     pending : commands drained from the inbox this step, not yet taken by a command system
+    sensors : sensor messages (newest per vehicle and sensor; this step's for publishers)
+    gravity_enu_m_s2 : the world's gravity vector
+    origin : the world's geodetic origin (WGS84) of the ENU frame
     """
 
     layout: SceneLayout
@@ -44,6 +55,9 @@ class SimServices:
     entities: dict[str, int]
     events: list[tuple[float, str, str]]
     pending: list[Any] = field(default_factory=list)
+    sensors: SensorOutputs = field(default_factory=lambda: _sensor_outputs())
+    gravity_enu_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.81)
+    origin: GeodeticOrigin | None = None
 
     def note(self, sim_time_s: float, vehicle: str, message: str) -> None:
         """Record a rare event (never called per step in steady state)."""

@@ -1,0 +1,143 @@
+"""What every sensor shares: mount, rate, topic and frame names, its schedule on the sim clock, where
+its messages go, and its own seeded noise stream.
+
+A sensor is a component (the world-file block under a vehicle's ``components``, e.g. ``imu: {}``)
+whose dataclass extends :class:`SensorSpec`, plus one SENSORS-phase system that measures every
+sensor of its kind that is due, in one vectorised pass. Outputs are ROS 2 Jazzy messages
+(:mod:`unetyemu_ecs.sensors.messages`), kept in :class:`SensorOutputs`: the newest per vehicle and
+sensor for the Python API, and the list of this step's messages for publishers.
+
+Frames (DESIGN.md §3): the vehicle body is ``<vehicle>/base_link`` (FLU); a sensor sits at
+``mount_xyz_m`` in it, rotated by ``mount_rpy_deg`` (roll, pitch, yaw about FLU x, y, z).
+"""
+
+from __future__ import annotations
+
+import zlib
+from dataclasses import dataclass, field
+from typing import Annotated, Any
+
+import esper
+import numpy as np
+
+from ..components.body import FleetSlot, Identity
+from ..config.schema import Gt, NonEmpty
+from ..frames import quat_xyzw_from_euler_rpy
+from ..world import StepContext
+
+
+@dataclass(frozen=True, kw_only=True)
+class SensorSpec:
+    """Fields every sensor has (its subclass sets the default rate)."""
+
+    rate_hz: Annotated[float, Gt(0.0)] = 10.0
+    mount_xyz_m: tuple[float, float, float] = (0.0, 0.0, 0.0)        # in base_link (FLU) [m]
+    mount_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)      # sensor axes relative to base_link
+    topic: Annotated[str, NonEmpty()] | None = None                  # None: /<vehicle>/<default suffix>
+    frame_id: Annotated[str, NonEmpty()] | None = None               # None: <vehicle>/<default link>
+
+    def mount_quat_xyzw(self) -> np.ndarray:
+        """Rotation of the sensor frame in base_link, xyzw."""
+        r, p, y = np.deg2rad(self.mount_rpy_deg)
+        return np.asarray(quat_xyzw_from_euler_rpy(r, p, y), dtype=float).reshape(4)
+
+
+@dataclass(frozen=True)
+class SensorSample:
+    """One measurement: when (sim time [s]), which vehicle and sensor key, the topic, the message."""
+
+    time_s: float
+    vehicle: str
+    sensor: str
+    topic: str
+    msg: Any
+
+
+@dataclass
+class SensorOutputs:
+    """Sensor messages of one simulation: newest per (vehicle, sensor key), and this step's in order."""
+
+    latest: dict[tuple[str, str], SensorSample] = field(default_factory=dict)
+    this_step: list[SensorSample] = field(default_factory=list)
+
+    def put(self, sample: SensorSample) -> None:
+        self.latest[(sample.vehicle, sample.sensor)] = sample
+        self.this_step.append(sample)
+
+
+@dataclass
+class MountedSensor:
+    """One sensor instance as its system sees it (gathered when the fleet changes)."""
+
+    entity: int
+    row: int
+    vehicle: str
+    kind: str              # the vehicle's kind: quadrotor, car
+    spec: Any
+    topic: str
+    frame_id: str
+    next_due_s: float = 0.0
+
+
+class SensorSystemBase(esper.Processor):
+    """Gathering, scheduling and noise streams for a SENSORS-phase system of one sensor kind.
+
+    Subclasses set ``spec_type``, ``key`` (the world-file key), ``topic_suffix``, ``link`` and
+    implement ``measure(ctx, due, time_s)`` for the list of sensors due this step.
+    """
+
+    spec_type: type = SensorSpec
+    key = "sensor"
+    topic_suffix = "sensor"
+    link = "base_link"
+
+    def __init__(self) -> None:
+        self._seen_version = -1
+        self.sensors: list[MountedSensor] = []
+        self._rng: dict[str, np.random.Generator] = {}
+
+    def gather(self, ctx: StepContext) -> None:
+        found = []
+        for ent, (slot, ident, spec) in esper.get_components(FleetSlot, Identity, self.spec_type):
+            topic = spec.topic or f"/{ident.name}/{self.topic_suffix}"
+            frame = spec.frame_id or f"{ident.name}/{self.link}"
+            old = next((s for s in self.sensors if s.entity == ent), None)
+            found.append(MountedSensor(ent, slot.row, ident.name, ident.kind, spec, topic, frame,
+                                       old.next_due_s if old else 0.0))
+        self.sensors = sorted(found, key=lambda s: s.row)
+
+    def rng_for(self, ctx: StepContext, sensor: MountedSensor) -> np.random.Generator:
+        """This sensor's own noise stream: seeded by the world seed and the sensor's name, so that
+        adding a sensor never changes another one's noise (nor anything else's randomness)."""
+        name = f"{self.key}/{sensor.vehicle}"
+        gen = self._rng.get(name)
+        if gen is None:
+            entropy = ctx.rng.bit_generator.seed_seq.entropy
+            gen = np.random.default_rng(np.random.SeedSequence(entropy, spawn_key=(zlib.crc32(name.encode()),)))
+            self._rng[name] = gen
+        return gen
+
+    def process(self, ctx: StepContext) -> None:
+        if ctx.fleet.version != self._seen_version:
+            self.gather(ctx)
+            self._seen_version = ctx.fleet.version
+        if not self.sensors:
+            return
+        time_s = ctx.sim_time_s + ctx.dt_s                 # measured at the end of this step
+        eps = 1e-9
+        due = [s for s in self.sensors if time_s + eps >= s.next_due_s]
+        if not due:
+            return
+        for s in due:
+            period = 1.0 / s.spec.rate_hz
+            s.next_due_s += period * max(1, int(np.floor((time_s + eps - s.next_due_s) / period)) + 1)
+        self.measure(ctx, due, time_s)
+
+    def measure(self, ctx: StepContext, due: list[MountedSensor], time_s: float) -> None:
+        raise NotImplementedError
+
+    def publish(self, ctx: StepContext, sensor: MountedSensor, time_s: float, msg: Any) -> None:
+        ctx.services.sensors.put(SensorSample(time_s, sensor.vehicle, self.key, sensor.topic, msg))
+
+
+__all__ = ["MountedSensor", "SensorOutputs", "SensorSample", "SensorSpec", "SensorSystemBase"]

@@ -1,0 +1,71 @@
+"""Battery: ``sensor_msgs/BatteryState`` of a drone's energy model (charge, current, percentage).
+
+The energy model (:mod:`unetyemu_ecs.systems.energy`) works in watts and watt-hours; the message
+speaks amperes and ampere-hours at the pack's nominal voltage (a constant-voltage pack: the model
+has no discharge curve, and says so by reporting the nominal voltage).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Annotated
+
+import esper
+import numpy as np
+
+from ..components.flight import EnergyModel
+from ..config.schema import Gt
+from ..phases import Phase
+from ..world import StepContext
+from .base import MountedSensor, SensorSpec, SensorSystemBase
+from .messages import header, msg_type
+
+
+@dataclass(frozen=True, kw_only=True)
+class BatterySensor(SensorSpec):
+    """World-file key ``battery`` (drones: it reads the ``energy`` model)."""
+
+    rate_hz: Annotated[float, Gt(0.0)] = 1.0
+    nominal_voltage_v: Annotated[float, Gt(0.0)] = 22.2     # 6S lithium-polymer pack
+    cells: Annotated[int, Gt(0)] = 6
+
+
+class BatterySystem(SensorSystemBase):
+    """Every battery monitor that is due. Phase: SENSORS. Reads: power, energy, state of charge."""
+
+    phase = Phase.SENSORS
+    order = 30
+    spec_type = BatterySensor
+    key = "battery"
+    topic_suffix = "battery"
+    link = "base_link"
+
+    def measure(self, ctx: StepContext, due: list[MountedSensor], time_s: float) -> None:
+        f = ctx.fleet
+        BatteryState = msg_type("sensor_msgs/msg/BatteryState")
+        for s in due:
+            spec: BatterySensor = s.spec
+            model = esper.component_for_entity(s.entity, EnergyModel)
+            v = spec.nominal_voltage_v
+            charging = bool(f.charging[s.row])
+            soc = float(f.soc_frac[s.row])
+            status = (BatteryState.POWER_SUPPLY_STATUS_FULL if soc >= 1.0 and not charging else
+                      BatteryState.POWER_SUPPLY_STATUS_CHARGING if charging else
+                      BatteryState.POWER_SUPPLY_STATUS_DISCHARGING)
+            # ROS: current is negative while discharging
+            current = (float(f.charge_power_w[s.row]) if charging else -float(f.power_w[s.row])) / v
+            msg = BatteryState(
+                header=header(time_s, s.frame_id), voltage=float(v), temperature=float("nan"), current=current,
+                charge=float(f.energy_j[s.row]) / 3600.0 / v, capacity=model.battery_wh / v,
+                design_capacity=model.battery_wh / v, percentage=soc,
+                power_supply_status=status,
+                power_supply_health=(BatteryState.POWER_SUPPLY_HEALTH_DEAD if soc <= 0.0
+                                     else BatteryState.POWER_SUPPLY_HEALTH_GOOD),
+                power_supply_technology=BatteryState.POWER_SUPPLY_TECHNOLOGY_LIPO, present=True,
+                cell_voltage=np.full(spec.cells, v / spec.cells, dtype=np.float32),
+                cell_temperature=np.full(spec.cells, np.nan, dtype=np.float32),
+                location=s.vehicle, serial_number="")
+            self.publish(ctx, s, time_s, msg)
+
+
+__all__ = ["BatterySensor", "BatterySystem"]
