@@ -13,6 +13,7 @@ from .plugins import ComponentPlugin, SensorPlugin
 from .sensors.battery import BatterySensor, BatterySystem
 from .sensors.gps import GpsSensor, GpsSystem
 from .sensors.imu import ImuSensor, ImuSystem
+from .sensors.lidar import LidarSensor, LidarSystem
 from .sensors.odometry import OdometrySensor, OdometrySystem
 from .systems.actuate import AeroDragSystem
 from .systems.car import CarActuationSystem, CarCommandSystem, CarControllerSystem, CarGuidanceSystem
@@ -71,3 +72,5 @@ BATTERY = SensorPlugin(component=BatterySensor, system=BatterySystem, applies_to
                        summary="sensor_msgs/BatteryState of the drone's energy model")
 ODOMETRY = SensorPlugin(component=OdometrySensor, system=OdometrySystem,
                         summary="nav_msgs/Odometry, ground truth, twist in base_link")
+LIDAR = SensorPlugin(component=LidarSensor, system=LidarSystem,
+                     summary="360 deg LiDAR (Open3D raycasting), sensor_msgs/PointCloud2 x y z intensity ring")

@@ -131,6 +131,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .config.schema import ConfigError
     from .config.world_file import load_world
     from .physics.client import PhysicsError
+    from .sensors.lidar import SensorUnavailable
     from .summary import build_summary, format_summary, write_summary
 
     try:
@@ -146,7 +147,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     out = args.out or Path("runs") / f"{world.name}-{time.strftime('%Y%m%d-%H%M%S')}"
     try:
         sim = Simulation(world, gui=args.gui, out_dir=out)
-    except PhysicsError as exc:
+    except (PhysicsError, SensorUnavailable) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_FAILURE
     except OSError as exc:

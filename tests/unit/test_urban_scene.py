@@ -239,3 +239,4 @@ def test_nearest_object_measures_to_tree_crowns_and_the_ground(city):
     assert found.object_id == tree.object_id and dist == pytest.approx(0.5)
     found, dist = city.nearest_object(np.array([0.0, 0.0, 0.3]), SceneClass.GROUND)
     assert found.object_id == 0 and dist == pytest.approx(0.3)
+
