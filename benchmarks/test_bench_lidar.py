@@ -1,0 +1,73 @@
+"""LiDAR cost: the full pipeline (rays in the world frame, static + moving-body casts, points in the
+sensor frame, PointCloud2) for N drones in the default city, next to a bare ``cast_rays`` of the same
+number of rays on the same static scene, measured in the same run.
+
+Run: python3 -m pytest benchmarks/test_bench_lidar.py --benchmark-only --benchmark-columns=mean,stddev,rounds
+Rays per second are in each result's extra_info (``--benchmark-verbose`` or ``--benchmark-json``) and
+printed at the end of the run.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from unetyemu_ecs import Simulation, load_world_text
+from unetyemu_ecs.sensors.lidar import LidarSystem, ray_directions_sensor
+
+RAYS_PER_SCAN = 360 * 16
+RESULTS: dict[str, float] = {}
+
+
+def _city_with_lidar_drones(n: int) -> str:
+    lines = ["world: {name: bench_lidar, physics_hz: 240, seed: 42}", "scene: {generator: urban}", "vehicles:"]
+    for i in range(n):
+        # above the north-south streets (x = -72, 0, 72), 15 m up, so that the scans see streets and facades
+        x, y = -72.0 + 72.0 * (i % 3), -130.0 + 260.0 * (i // 3) / max((n - 1) // 3, 1)
+        lines.append(f"  - {{name: d{i}, type: quadrotor, preset: medium, pose: {{position_m: [{x:.1f}, {y:.1f}, 15.0]}},"
+                     f" components: {{lidar: {{vertical_center_deg: -15.0}}}}}}")
+    return "\n".join(lines) + "\n"
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _report():
+    yield
+    for name, rate in RESULTS.items():
+        print(f"\n{name}: {rate / 1e6:.2f} Mrays/s")
+
+
+@pytest.mark.parametrize("n_drones", [1, 30, 100])
+def test_lidar_pipeline_for_n_drones(benchmark, n_drones):
+    sim = Simulation(load_world_text(_city_with_lidar_drones(n_drones)))
+    try:
+        sim.step(1)
+        lidar = next(s for s in sim.ecs.systems if isinstance(s, LidarSystem))
+        ctx = sim._context()
+
+        def one_tick():
+            with sim.ecs.active():
+                lidar.measure(ctx, lidar.sensors, sim.sim_time_s)
+
+        benchmark.pedantic(one_tick, rounds=5, iterations=1, warmup_rounds=1)
+        rays = n_drones * RAYS_PER_SCAN
+        benchmark.extra_info["rays_per_s"] = rays / benchmark.stats.stats.mean
+        RESULTS[f"pipeline, {n_drones} drones"] = rays / benchmark.stats.stats.mean
+        assert sim.sensor("d0", "lidar").width > 0.2 * RAYS_PER_SCAN       # it really sees the city
+
+        # the bare cast of the same rays on the same static scene
+        import open3d as o3d
+
+        dirs, _ = ray_directions_sensor(lidar.sensors[0].spec)
+        rays_np = np.hstack([np.repeat(sim.fleet.pos_enu_m[[s.row for s in lidar.sensors]], len(dirs), axis=0),
+                             np.tile(dirs, (n_drones, 1))]).astype(np.float32)
+        tensor = o3d.core.Tensor(rays_np)
+        import time
+        best = np.inf
+        for _ in range(5):
+            t0 = time.perf_counter()
+            lidar.scanner.static.cast_rays(tensor, nthreads=0)
+            best = min(best, time.perf_counter() - t0)
+        benchmark.extra_info["bare_cast_rays_per_s"] = rays / best
+        RESULTS[f"bare cast_rays, {n_drones} drones"] = rays / best
+    finally:
+        sim.close()
