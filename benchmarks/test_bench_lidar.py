@@ -65,7 +65,7 @@ def test_lidar_pipeline_for_n_drones(benchmark, n_drones):
         best = np.inf
         for _ in range(5):
             t0 = time.perf_counter()
-            lidar.scanner.static.cast_rays(tensor, nthreads=0)
+            lidar.world.static.cast_rays(tensor, nthreads=0)
             best = min(best, time.perf_counter() - t0)
         benchmark.extra_info["bare_cast_rays_per_s"] = rays / best
         RESULTS[f"bare cast_rays, {n_drones} drones"] = rays / best

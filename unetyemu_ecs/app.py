@@ -12,7 +12,7 @@ from typing import Any
 import esper
 import numpy as np
 
-from .components.body import FleetSlot, Identity, RigidBody
+from .components.body import Appearance, FleetSlot, Identity, RigidBody
 from .components.car import CarBody, CarDynamics
 from .components.mission import MissionRuntime
 from .config.schema import ConfigError, Issue
@@ -135,6 +135,8 @@ class Simulation:
         esper.add_component(eid, Identity(name=ent.name, kind=ent.kind, preset=ent.preset, index=ent.index))
         esper.add_component(eid, FleetSlot(row=row))
         esper.add_component(eid, RigidBody(body_id=body, mass_kg=mass, half_extents_m=half))
+        rgba = PACKAGE_RGBA if ent.kind == "package" else ent.params["rgba"]
+        esper.add_component(eid, Appearance(rgba=tuple(float(c) for c in rgba)))
         if car_joints is not None:
             esper.add_component(eid, CarBody(joints=car_joints))
         for key, comp in ent.components.items():

@@ -11,6 +11,7 @@ from .control.position import GuidanceGains
 from .mission import MissionSpec
 from .plugins import ComponentPlugin, SensorPlugin
 from .sensors.battery import BatterySensor, BatterySystem
+from .sensors.camera import DepthCamera, DepthCameraSystem, RgbCamera, RgbCameraSystem
 from .sensors.gps import GpsSensor, GpsSystem
 from .sensors.imu import ImuSensor, ImuSystem
 from .sensors.lidar import LidarSensor, LidarSystem
@@ -74,3 +75,7 @@ ODOMETRY = SensorPlugin(component=OdometrySensor, system=OdometrySystem,
                         summary="nav_msgs/Odometry, ground truth, twist in base_link")
 LIDAR = SensorPlugin(component=LidarSensor, system=LidarSystem,
                      summary="360 deg LiDAR (Open3D raycasting), sensor_msgs/PointCloud2 x y z intensity ring")
+CAMERA = SensorPlugin(component=RgbCamera, system=RgbCameraSystem,
+                      summary="RGB camera (ray cast): sensor_msgs/Image rgb8 + CameraInfo, optical frame")
+DEPTH_CAMERA = SensorPlugin(component=DepthCamera, system=DepthCameraSystem,
+                            summary="depth camera (ray cast): sensor_msgs/Image 32FC1 metres (+inf no return) + CameraInfo")

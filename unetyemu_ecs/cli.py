@@ -131,7 +131,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .config.schema import ConfigError
     from .config.world_file import load_world
     from .physics.client import PhysicsError
-    from .sensors.lidar import SensorUnavailable
+    from .sensors.raycast import SensorUnavailable
     from .summary import build_summary, format_summary, write_summary
 
     try:

@@ -58,6 +58,7 @@ class SimServices:
     sensors: SensorOutputs = field(default_factory=lambda: _sensor_outputs())
     gravity_enu_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.81)
     origin: GeodeticOrigin | None = None
+    raycast: Any = None          # the RaycastWorld of LiDARs and cameras, built by the first that needs it
 
     def note(self, sim_time_s: float, vehicle: str, message: str) -> None:
         """Record a rare event (never called per step in steady state)."""

@@ -6,8 +6,8 @@ import numpy as np
 from numpy.testing import assert_allclose
 
 from unetyemu_ecs.frames import quat_xyzw_from_euler_rpy
-from unetyemu_ecs.sensors.lidar import (LidarSensor, box_triangles, exit_distance_m, pointcloud2, ray_directions_sensor,
-                                        read_points)
+from unetyemu_ecs.sensors.lidar import LidarSensor, pointcloud2, ray_directions_sensor, read_points
+from unetyemu_ecs.sensors.raycast import box_triangles, exit_distance_m
 
 
 def test_scan_pattern_has_the_configured_rings_and_azimuths():

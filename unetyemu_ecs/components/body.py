@@ -34,3 +34,10 @@ class RigidBody:
     body_id: int
     mass_kg: float
     half_extents_m: np.ndarray   # (3,) [m] half size of the collision box, FLU
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Appearance:
+    """How a body looks to cameras: its colour (RGBA in [0, 1])."""
+
+    rgba: tuple[float, float, float, float]

@@ -1,0 +1,217 @@
+"""RGB and depth cameras by ray casting the same world as the LiDAR (``sensor_msgs/Image`` + ``CameraInfo``).
+
+Why ray casting: measured on our 2-core machines (NOTES.md, and ``benchmarks/test_bench_camera.py``
+in the same run), casting one ray per pixel through Open3D's RaycastingScene is faster than PyBullet's
+TinyRenderer (about 2.5x at 640x480), needs no GPU or EGL, and gives depth and colour from the very
+same hits, so RGB and depth of one camera agree geometrically by construction.
+
+Pinhole model in the optical frame (REP-103: z forward, x right, y down), square pixels:
+``fx = fy = (width / 2) / tan(hfov / 2)``, principal point at the image centre ``((w-1)/2, (h-1)/2)``
+(pixel centres at integer coordinates, as in OpenCV and ROS), no distortion. The ray through pixel
+``(u, v)`` is ``((u - cx) / fx, (v - cy) / fy, 1)``.
+
+- Depth (``32FC1``): the z coordinate of the hit in the optical frame, in metres (REP-118), ``+inf``
+  where nothing is hit within ``max_range_m``.
+- RGB (``rgb8``): flat colours per scene class (and each vehicle's own colour) lit by a sun
+  (ambient + Lambert), sky colour where nothing is hit. A look for perception tests, not photorealism.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Annotated, Any
+
+import esper
+import numpy as np
+
+from ..components.body import Appearance, FleetSlot
+from ..config.schema import Gt, Lt
+from ..phases import Phase
+from ..physics.static_scene import RGBA
+from ..scene.primitives import SceneClass
+from ..world import StepContext
+from .base import MountedSensor, SensorSpec
+from .lidar import RaycastSensorSystem
+from .messages import header, msg_type
+from .raycast import MOVING_BODY, NO_HIT, ray_starts
+
+# optical frame axes in the camera link (FLU): optical x = -link y, optical y = -link z, optical z = link x
+R_LINK_OPTICAL = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+SKY_RGB = np.array([0.62, 0.76, 0.92])
+SUN_DIR_ENU = np.array([0.35, -0.45, 0.82]) / np.linalg.norm([0.35, -0.45, 0.82])
+AMBIENT = 0.45
+
+
+@dataclass(frozen=True, kw_only=True)
+class CameraSpec(SensorSpec):
+    """Shared camera fields."""
+
+    rate_hz: Annotated[float, Gt(0.0)] = 10.0
+    width: Annotated[int, Gt(0)] = 640
+    height: Annotated[int, Gt(0)] = 480
+    hfov_deg: Annotated[float, Gt(0.0), Lt(180.0)] = 90.0
+    max_range_m: Annotated[float, Gt(0.0)] = 200.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class RgbCamera(CameraSpec):
+    """World-file key ``camera``: ``rgb8`` images on ``/<vehicle>/camera/image_raw``."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class DepthCamera(CameraSpec):
+    """World-file key ``depth_camera``: ``32FC1`` metres on ``/<vehicle>/depth/image_raw``."""
+
+
+def intrinsics(width: int, height: int, hfov_deg: float) -> np.ndarray:
+    """Camera matrix K (3, 3) for square pixels and a centred principal point."""
+    f = (width / 2.0) / np.tan(np.deg2rad(hfov_deg) / 2.0)
+    return np.array([[f, 0.0, (width - 1) / 2.0], [0.0, f, (height - 1) / 2.0], [0.0, 0.0, 1.0]])
+
+
+def pixel_rays_optical(width: int, height: int, hfov_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """Unit ray directions (H*W, 3) in the optical frame, row-major, and their z components (H*W,)."""
+    K = intrinsics(width, height, hfov_deg)
+    u, v = np.meshgrid(np.arange(width, dtype=np.float64), np.arange(height, dtype=np.float64))
+    d = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u)], axis=-1).reshape(-1, 3)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    return d, d[:, 2].copy()
+
+
+def camera_info(time_s: float, frame_id: str, width: int, height: int, hfov_deg: float) -> Any:
+    K = intrinsics(width, height, hfov_deg)
+    P = np.hstack([K, np.zeros((3, 1))])
+    return msg_type("sensor_msgs/msg/CameraInfo")(
+        header=header(time_s, frame_id), height=height, width=width, distortion_model="plumb_bob",
+        d=np.zeros(5), k=K.reshape(-1).copy(), r=np.eye(3).reshape(-1).copy(), p=P.reshape(-1).copy(),
+        binning_x=0, binning_y=0,
+        roi=msg_type("sensor_msgs/msg/RegionOfInterest")(x_offset=0, y_offset=0, height=0, width=0, do_rectify=False))
+
+
+def image(time_s: float, frame_id: str, width: int, height: int, encoding: str, pixels: np.ndarray) -> Any:
+    data = np.ascontiguousarray(pixels)
+    return msg_type("sensor_msgs/msg/Image")(
+        header=header(time_s, frame_id), height=height, width=width, encoding=encoding, is_bigendian=0,
+        step=data.nbytes // height, data=np.frombuffer(data.tobytes(), dtype=np.uint8))
+
+
+def read_image(msg: Any) -> np.ndarray:
+    """Pixels of an ``rgb8`` (H, W, 3) uint8 or ``32FC1`` (H, W) float32 Image."""
+    raw = np.asarray(msg.data, dtype=np.uint8).tobytes()
+    if msg.encoding == "rgb8":
+        return np.frombuffer(raw, dtype=np.uint8).reshape(msg.height, msg.width, 3)
+    if msg.encoding == "32FC1":
+        return np.frombuffer(raw, dtype="<f4").reshape(msg.height, msg.width)
+    raise ValueError(f"unsupported encoding {msg.encoding!r}")
+
+
+class _CameraSystem(RaycastSensorSystem):
+    """One ray per pixel for every camera of this kind that is due (cast in one batch)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._rays: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}   # entity -> dirs (link), z, exit
+
+    def gather(self, ctx: StepContext) -> None:
+        super().gather(ctx)
+        self._rays = {}
+        for s in self.sensors:
+            d_opt, z = pixel_rays_optical(s.spec.width, s.spec.height, s.spec.hfov_deg)
+            d_link = d_opt @ R_LINK_OPTICAL.T
+            self._rays[s.entity] = (d_link, z, self.own_exit_m(s, d_link))
+        self._colours = self._body_colours(ctx)
+
+    def _body_colours(self, ctx: StepContext) -> np.ndarray:
+        """RGB (N, 3) of every moving body, in the order of the moving boxes."""
+        by_row = {slot.row: np.asarray(look.rgba[:3], dtype=float)
+                  for _, (slot, look) in esper.get_components(FleetSlot, Appearance)}
+        return np.array([by_row.get(int(r), np.full(3, 0.5)) for r in self._body_rows]).reshape(-1, 3)
+
+    def cast_frames(self, ctx: StepContext, due: list[MountedSensor]) -> list[tuple[Any, np.ndarray, np.ndarray]]:
+        """Cast every due camera; return (hits slice, ray z component, world dirs) per camera."""
+        pos, R = self.sensor_poses(ctx, due)
+        origins, dirs_w, start_s, start_d, counts = [], [], [], [], []
+        for k, s in enumerate(due):
+            d_link, _, exit_m = self._rays[s.entity]
+            d_w = d_link @ R[k].T
+            origins.append(np.broadcast_to(pos[k], d_w.shape))
+            dirs_w.append(d_w)
+            a, b = ray_starts(exit_m)
+            start_s.append(a)
+            start_d.append(b)
+            counts.append(len(d_link))
+        dirs_all = np.vstack(dirs_w)
+        hits = self.world.cast(np.vstack(origins), dirs_all, np.concatenate(start_s), np.concatenate(start_d),
+                               self.moving_boxes(ctx))
+        out, first = [], 0
+        for k, s in enumerate(due):
+            n = counts[k]
+            sl = slice(first, first + n)
+            out.append((hits, sl, dirs_all[sl]))
+            first += n
+        return out
+
+
+_CLASS_RGB = np.zeros((256, 3))
+for _cls, _key in ((SceneClass.GROUND, "ground"), (SceneClass.ROAD, SceneClass.ROAD), (SceneClass.SIDEWALK, SceneClass.SIDEWALK),
+                   (SceneClass.BUILDING, SceneClass.BUILDING), (SceneClass.PAD, SceneClass.PAD)):
+    _CLASS_RGB[int(_cls)] = RGBA[_key][:3]
+_CLASS_RGB[int(SceneClass.TREE)] = RGBA["crown"][:3]
+
+
+class RgbCameraSystem(_CameraSystem):
+    """Every RGB camera that is due. Phase: SENSORS."""
+
+    phase = Phase.SENSORS
+    order = 60
+    spec_type = RgbCamera
+    key = "camera"
+    topic_suffix = "camera/image_raw"
+    link = "camera_optical_frame"
+
+    def measure(self, ctx: StepContext, due: list[MountedSensor], time_s: float) -> None:
+        for s, (hits, sl, dirs_w) in zip(due, self.cast_frames(ctx, due)):
+            spec: RgbCamera = s.spec
+            cls = hits.cls[sl]
+            rgb = _CLASS_RGB[np.clip(cls, 0, 255)]
+            body = cls == MOVING_BODY
+            rgb[body] = self._colours[hits.box[sl][body]]
+            normal = hits.normal[sl]
+            normal = np.where((np.einsum("ij,ij->i", normal, dirs_w) > 0)[:, None], -normal, normal)   # face the camera
+            shade = AMBIENT + (1.0 - AMBIENT) * np.clip(normal @ SUN_DIR_ENU, 0.0, 1.0)
+            rgb = rgb * shade[:, None]
+            sky = (cls == NO_HIT) | ~(hits.t[sl] <= spec.max_range_m)
+            rgb[sky] = SKY_RGB
+            pixels = np.clip(rgb * 255.0 + 0.5, 0, 255).astype(np.uint8).reshape(spec.height, spec.width, 3)
+            self.publish(ctx, s, time_s, image(time_s, s.frame_id, spec.width, spec.height, "rgb8", pixels))
+            self.publish_info(ctx, s, time_s)
+
+    def publish_info(self, ctx: StepContext, s: MountedSensor, time_s: float) -> None:
+        from .base import SensorSample
+
+        topic = s.topic.rsplit("/", 1)[0] + "/camera_info"
+        msg = camera_info(time_s, s.frame_id, s.spec.width, s.spec.height, s.spec.hfov_deg)
+        ctx.services.sensors.put(SensorSample(time_s, s.vehicle, f"{self.key}_info", topic, msg))
+
+
+class DepthCameraSystem(RgbCameraSystem):
+    """Every depth camera that is due. Phase: SENSORS."""
+
+    order = 61
+    spec_type = DepthCamera
+    key = "depth_camera"
+    topic_suffix = "depth/image_raw"
+    link = "camera_optical_frame"
+
+    def measure(self, ctx: StepContext, due: list[MountedSensor], time_s: float) -> None:
+        for s, (hits, sl, _) in zip(due, self.cast_frames(ctx, due)):
+            spec: DepthCamera = s.spec
+            _, z, _ = self._rays[s.entity]
+            t = hits.t[sl]
+            depth = np.where(t <= spec.max_range_m, t * z, np.inf).astype("<f4").reshape(spec.height, spec.width)
+            self.publish(ctx, s, time_s, image(time_s, s.frame_id, spec.width, spec.height, "32FC1", depth))
+            self.publish_info(ctx, s, time_s)
+
+
+__all__ = ["DepthCamera", "DepthCameraSystem", "RgbCamera", "RgbCameraSystem", "camera_info",
+           "intrinsics", "pixel_rays_optical", "read_image"]

@@ -1,0 +1,129 @@
+"""Ray casting against the world for the LiDAR and the cameras (Open3D RaycastingScene).
+
+The static city is one RaycastingScene built once from the scene mesh. Moving bodies (their
+collision boxes at this step's poses) go into a small second scene rebuilt for each cast from ONE
+merged ``add_triangles`` call (Open3D cannot move geometry after commit); both are cast and the
+nearer hit wins (NOTES.md: the fastest exact approach measured).
+
+A sensor never sees its own vehicle: a ray that crosses the vehicle's own box starts where it
+leaves it (:func:`exit_distance_m`, exact) and that distance is added back. The static scene is cast
+from 1 mm before that exit and the moving bodies from 1 mm after it, so neither the ground under a
+landed drone nor the own box's face at the exit is missed or mistaken. Cars' wheels are not part of
+the moving geometry (their chassis box is).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..frames import R_from_quat_xyzw
+
+EXIT_MARGIN_M = 0.001
+NO_HIT = -1            # RayHits.cls for rays that hit nothing
+MOVING_BODY = 255      # RayHits.cls for rays that hit a moving body (RayHits.box says which)
+
+_CUBE = np.array([[(k & 1) * 2 - 1, (k >> 1 & 1) * 2 - 1, (k >> 2 & 1) * 2 - 1] for k in range(8)], dtype=np.float64)
+_CUBE_TRIS = np.array([[0, 2, 3], [0, 3, 1], [4, 5, 7], [4, 7, 6], [0, 1, 5], [0, 5, 4],
+                       [2, 6, 7], [2, 7, 3], [0, 4, 6], [0, 6, 2], [1, 3, 7], [1, 7, 5]], dtype=np.int64)
+
+
+class SensorUnavailable(RuntimeError):
+    """A sensor's library cannot be loaded on this machine (the message says what to install)."""
+
+
+def import_open3d() -> Any:
+    """Import Open3D, or explain what is missing (on Debian its import needs libusb-1.0-0)."""
+    try:
+        import open3d
+    except ImportError as exc:
+        hint = (" -- install the system package: apt-get install -y libusb-1.0-0" if "libusb" in str(exc) else
+                " -- install it with: python3 -m pip install open3d-cpu==0.20.0")
+        raise SensorUnavailable(f"LiDAR and cameras need Open3D, which does not import here ({exc}){hint}") from exc
+    return open3d
+
+
+def exit_distance_m(origin_m: np.ndarray, dirs: np.ndarray, half_extents_m: np.ndarray) -> np.ndarray:
+    """Distance (M,) along each ray from ``origin`` (3,) to where it leaves an axis-aligned box of
+    ``half_extents`` centred at the frame origin (0 for rays that never cross the box). Slab method."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1 = (-half_extents_m - origin_m) / dirs
+        t2 = (half_extents_m - origin_m) / dirs
+    inside_slab = np.abs(origin_m) <= half_extents_m                      # per axis, for rays parallel to it
+    t_lo = np.where(dirs == 0.0, np.where(inside_slab, -np.inf, np.inf), np.minimum(t1, t2))
+    t_hi = np.where(dirs == 0.0, np.where(inside_slab, np.inf, -np.inf), np.maximum(t1, t2))
+    t_near, t_far = t_lo.max(axis=1), t_hi.min(axis=1)
+    crosses = (t_far >= np.maximum(t_near, 0.0)) & np.isfinite(t_far)
+    return np.where(crosses, np.maximum(t_far, 0.0), 0.0)
+
+
+def ray_starts(exit_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Start distances (static scene, moving bodies) for rays leaving the own hull at ``exit_m``."""
+    return np.maximum(exit_m - EXIT_MARGIN_M, 0.0), np.where(exit_m > 0.0, exit_m + EXIT_MARGIN_M, 0.0)
+
+
+def box_triangles(centers_m: np.ndarray, quats_xyzw: np.ndarray, half_extents_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (8N, 3) and triangles (12N, 3) of N oriented boxes (outward CCW), world frame."""
+    n = len(centers_m)
+    R = R_from_quat_xyzw(quats_xyzw)
+    local = _CUBE[None, :, :] * half_extents_m[:, None, :]                        # (N, 8, 3)
+    verts = centers_m[:, None, :] + np.einsum("nij,nkj->nki", R, local)
+    tris = (_CUBE_TRIS[None, :, :] + 8 * np.arange(n)[:, None, None]).reshape(-1, 3)
+    return verts.reshape(-1, 3), tris
+
+
+@dataclass(frozen=True)
+class RayHits:
+    """What M rays hit: ``t`` distance from the ray origin [m] (inf: nothing), unit ``normal`` (M, 3),
+    ``cls`` the SceneClass of a static hit (MOVING_BODY, NO_HIT), ``box`` the moving body's index (-1)."""
+
+    t: np.ndarray
+    normal: np.ndarray
+    cls: np.ndarray
+    box: np.ndarray
+
+
+class RaycastWorld:
+    """The static scene mesh plus moving boxes, cast together (no esper: usable on its own)."""
+
+    def __init__(self, vertices_m: np.ndarray, triangles: np.ndarray, tri_cls: np.ndarray) -> None:
+        o3d = import_open3d()
+        self._o3d = o3d
+        self.static = o3d.t.geometry.RaycastingScene()
+        self.static.add_triangles(o3d.core.Tensor(np.asarray(vertices_m, dtype=np.float32)),
+                                  o3d.core.Tensor(np.asarray(triangles, dtype=np.uint32)))
+        self._tri_cls = np.asarray(tri_cls, dtype=np.int16)
+
+    def cast(self, origins_m: np.ndarray, dirs_world: np.ndarray, start_static_m: np.ndarray,
+             start_dynamic_m: np.ndarray, boxes: tuple[np.ndarray, np.ndarray, np.ndarray] | None) -> RayHits:
+        """Cast rays (M,) from ``origins`` along unit ``dirs``, starting ``start_*`` metres along them in
+        the static and the moving-body scene. ``boxes`` = (centres, quats, half extents) of moving bodies."""
+        o3d = self._o3d
+        rays = np.hstack([origins_m + start_static_m[:, None] * dirs_world, dirs_world]).astype(np.float32)
+        hit = self.static.cast_rays(o3d.core.Tensor(rays), nthreads=0)
+        t = hit["t_hit"].numpy().astype(np.float64) + start_static_m
+        normal = hit["primitive_normals"].numpy()
+        prim = hit["primitive_ids"].numpy()
+        found = np.isfinite(t)
+        cls = np.full(len(t), NO_HIT, dtype=np.int16)
+        cls[found] = self._tri_cls[prim[found]]
+        box = np.full(len(t), -1, dtype=np.int64)
+        if boxes is not None and len(boxes[0]):
+            verts, tris = box_triangles(*boxes)
+            dyn = o3d.t.geometry.RaycastingScene()
+            dyn.add_triangles(o3d.core.Tensor(verts.astype(np.float32)), o3d.core.Tensor(tris.astype(np.uint32)))
+            rays[:, :3] = origins_m + start_dynamic_m[:, None] * dirs_world
+            dhit = dyn.cast_rays(o3d.core.Tensor(rays), nthreads=0)
+            td = dhit["t_hit"].numpy().astype(np.float64) + start_dynamic_m
+            nearer = td < t
+            t = np.where(nearer, td, t)
+            normal = np.where(nearer[:, None], dhit["primitive_normals"].numpy(), normal)
+            cls = np.where(nearer, MOVING_BODY, cls).astype(np.int16)
+            box = np.where(nearer, dhit["primitive_ids"].numpy().astype(np.int64) // 12, box)
+        return RayHits(t, normal.astype(np.float64), cls, box)
+
+
+__all__ = ["EXIT_MARGIN_M", "MOVING_BODY", "NO_HIT", "RayHits", "RaycastWorld", "SensorUnavailable", "box_triangles",
+           "exit_distance_m", "import_open3d", "ray_starts"]
