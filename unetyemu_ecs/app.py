@@ -25,6 +25,7 @@ from .physics.car_body import CarGeometry, create_car_body
 from .physics.client import PhysicsClient
 from .physics.static_scene import build_static_scene
 from .plugins import Registry
+from .sensors.tf import TransformSystem
 from .systems.car_state import DriveMode
 from .systems.commands import InboxSystem, UnclaimedCommandSystem
 from .systems.impacts import ImpactMonitorSystem
@@ -149,7 +150,7 @@ class Simulation:
     def _add_systems(self, world: WorldDefinition) -> None:
         self._state = StateReadbackSystem()
         systems: list[Any] = [InboxSystem(), UnclaimedCommandSystem(), PhysicsStepSystem(), self._state,
-                              ImpactMonitorSystem(self.static_body_ids, world.layout)]
+                              ImpactMonitorSystem(self.static_body_ids, world.layout), TransformSystem()]
         classes: list[type] = []
         for ent in world.entities:
             for key in ent.components:
@@ -351,6 +352,12 @@ class Simulation:
         self.entity(vehicle)
         sample = self.services.sensors.latest.get((vehicle, key))
         return None if sample is None else sample.msg
+
+    def transforms(self) -> tuple[Any, Any]:
+        """The newest ``/tf`` and ``/tf_static`` TFMessages (None before the first step)."""
+        latest = self.services.sensors.latest
+        tf, static = latest.get(("", "tf")), latest.get(("", "tf_static"))
+        return (None if tf is None else tf.msg), (None if static is None else static.msg)
 
     @property
     def events(self) -> list[tuple[float, str, str]]:

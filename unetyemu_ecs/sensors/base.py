@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import zlib
 from dataclasses import dataclass, field
-from typing import Annotated, Any
+from typing import Annotated, Any, ClassVar
 
 import esper
 import numpy as np
@@ -28,7 +28,15 @@ from ..world import StepContext
 
 @dataclass(frozen=True, kw_only=True)
 class SensorSpec:
-    """Fields every sensor has (its subclass sets the default rate)."""
+    """Fields every sensor has (its subclass sets the default rate and its frame names).
+
+    ``LINK``: the sensor's frame under ``<vehicle>/`` (mounted on base_link, published on /tf_static);
+    ``OPTICAL``: for cameras, the optical frame under the link (z forward, x right, y down) that the
+    images are stamped with; empty when the sensor has no frame of its own (battery, odometry).
+    """
+
+    LINK: ClassVar[str] = ""
+    OPTICAL: ClassVar[str] = ""
 
     rate_hz: Annotated[float, Gt(0.0)] = 10.0
     mount_xyz_m: tuple[float, float, float] = (0.0, 0.0, 0.0)        # in base_link (FLU) [m]

@@ -19,7 +19,7 @@ Pinhole model in the optical frame (REP-103: z forward, x right, y down), square
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated, Any
+from typing import Annotated, Any, ClassVar
 
 import esper
 import numpy as np
@@ -57,10 +57,16 @@ class CameraSpec(SensorSpec):
 class RgbCamera(CameraSpec):
     """World-file key ``camera``: ``rgb8`` images on ``/<vehicle>/camera/image_raw``."""
 
+    LINK: ClassVar[str] = "camera_link"
+    OPTICAL: ClassVar[str] = "camera_optical_frame"
+
 
 @dataclass(frozen=True, kw_only=True)
 class DepthCamera(CameraSpec):
     """World-file key ``depth_camera``: ``32FC1`` metres on ``/<vehicle>/depth/image_raw``."""
+
+    LINK: ClassVar[str] = "depth_link"
+    OPTICAL: ClassVar[str] = "depth_optical_frame"
 
 
 def intrinsics(width: int, height: int, hfov_deg: float) -> np.ndarray:
@@ -201,7 +207,7 @@ class DepthCameraSystem(RgbCameraSystem):
     spec_type = DepthCamera
     key = "depth_camera"
     topic_suffix = "depth/image_raw"
-    link = "camera_optical_frame"
+    link = "depth_optical_frame"
 
     def measure(self, ctx: StepContext, due: list[MountedSensor], time_s: float) -> None:
         for s, (hits, sl, _) in zip(due, self.cast_frames(ctx, due)):

@@ -9,7 +9,7 @@ the covariance is diagonal and known (its variances are the noise's).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated
+from typing import Annotated, ClassVar
 
 import numpy as np
 
@@ -27,6 +27,8 @@ GROUND_TRUTH_VARIANCE_M2 = 1e-4      # a noiseless receiver still reports a (tin
 @dataclass(frozen=True, kw_only=True)
 class GpsSensor(SensorSpec):
     """World-file key ``gps``."""
+
+    LINK: ClassVar[str] = "gps_link"
 
     rate_hz: Annotated[float, Gt(0.0)] = 10.0
     horizontal_noise_std_m: Annotated[float, Ge(0.0)] = 0.0

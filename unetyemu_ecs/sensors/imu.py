@@ -17,7 +17,7 @@ white-noise variances. Each IMU has its own seeded stream.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated
+from typing import Annotated, ClassVar
 
 import numpy as np
 
@@ -34,6 +34,8 @@ ORIENTATION_VARIANCE_RAD2 = 1e-6     # ground-truth orientation: tiny, but known
 @dataclass(frozen=True, kw_only=True)
 class ImuSensor(SensorSpec):
     """World-file key ``imu``."""
+
+    LINK: ClassVar[str] = "imu_link"
 
     rate_hz: Annotated[float, Gt(0.0)] = 100.0
     gyro_noise_std_rad_s: Annotated[float, Ge(0.0)] = 0.0

@@ -16,7 +16,7 @@ angle, in [0, 1].
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated, Any
+from typing import Annotated, Any, ClassVar
 
 import esper
 import numpy as np
@@ -45,6 +45,8 @@ FLOAT32, UINT16 = 7, 4             # sensor_msgs/PointField datatypes
 @dataclass(frozen=True, kw_only=True)
 class LidarSensor(SensorSpec):
     """World-file key ``lidar``."""
+
+    LINK: ClassVar[str] = "lidar_link"
 
     rate_hz: Annotated[float, Gt(0.0)] = 10.0
     horizontal_samples: Annotated[int, Gt(0)] = 360
