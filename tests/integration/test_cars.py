@@ -9,11 +9,9 @@ import pybullet as p
 import pytest
 
 from unetyemu_ecs import Simulation, load_world_text
-from unetyemu_ecs.components.car import CarBody, CarDynamics, CarRoute
+from unetyemu_ecs.components.car import CarBody, CarDynamics
 from unetyemu_ecs.control.car import steer_limit_rad
 from unetyemu_ecs.systems.car_state import DriveMode
-
-from ..conftest import WORLDS
 
 G = 9.81
 ROAD_FRICTION = 0.9          # the ground's friction coefficient; the tyre's 1.0 multiplies it
@@ -151,24 +149,6 @@ def test_full_throttle_never_exceeds_the_top_speed():
             sim.run(duration=1.0)
             fastest = max(fastest, speed(sim, "c1"))
         assert 0.9 * top < fastest <= top
-
-
-def test_the_truck_completes_its_block_route_within_1_5_m_of_every_waypoint():
-    # GIVEN the shipped delivery world, whose truck drives two laps round a block
-    with Simulation.from_file(WORLDS / "urban_delivery.yaml") as sim:
-        route = sim.component("truck1", CarRoute)
-        waypoints = np.array([[w.x, w.y] for w in route.waypoints])
-        nearest = np.full(len(waypoints), np.inf)
-        for _ in range(240 * 120):
-            sim.step()
-            nearest = np.minimum(nearest, np.linalg.norm(waypoints - sim.position_enu_m("truck1")[:2], axis=1))
-            if sim.fleet.path_done[sim.row("truck1")]:
-                break
-        # THEN it finished (two laps, stopped at its first waypoint) passing every waypoint within 1.5 m
-        truck_events = [text for _, who, text in sim.events if who == "truck1"]
-        assert "route done" in truck_events and truck_events.count("route lap 1 done") <= 1
-        assert np.all(nearest < 1.5), nearest
-        assert not [e for e in sim.events if e[2].startswith("impact")]
 
 
 def test_a_car_driven_into_a_parked_car_at_5_m_s_pushes_it_and_both_stay_upright():

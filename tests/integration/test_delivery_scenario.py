@@ -10,6 +10,7 @@ import pytest
 
 from unetyemu_ecs import Simulation
 from unetyemu_ecs.cli import main as cli_main
+from unetyemu_ecs.components.car import CarRoute
 
 from ..conftest import WORLDS
 
@@ -26,7 +27,12 @@ def delivery_run(tmp_path_factory):
     """Run the whole scenario once (150 s simulated) and keep its outputs."""
     out = tmp_path_factory.mktemp("delivery")
     with Simulation.from_file(WORLD, out_dir=out) as sim:
-        sim.run(until=150.0)
+        route = sim.component("truck1", CarRoute)
+        waypoints = np.array([[w.x, w.y] for w in route.waypoints])
+        nearest = np.full(len(waypoints), np.inf)            # closest the truck came to each waypoint
+        while sim.sim_time_s < 150.0 - 1e-9:
+            sim.step()
+            nearest = np.minimum(nearest, np.linalg.norm(waypoints - sim.position_enu_m("truck1")[:2], axis=1))
         result = {
             "status": {name: sim.mission_status(name) for name in ("drone1", "drone2")},
             "package": sim.position_enu_m("package1"),
@@ -36,6 +42,8 @@ def delivery_run(tmp_path_factory):
             "drone3_z": sim.position_enu_m("drone3")[2],
             "events": sim.events,
             "impacts": [e for e in sim.events if e[2].startswith("impact")],
+            "truck_nearest_m": nearest,
+            "truck_events": [text for _, who, text in sim.events if who == "truck1"],
         }
     return out, result
 
@@ -54,6 +62,12 @@ def test_delivery_mission_completes_and_the_package_ends_on_the_rooftop_pad(deli
 def test_the_shipped_routes_clear_every_building_and_tree(delivery_run):
     # the rooftop route detours around a 56 m tower that stands on the straight line
     assert delivery_run[1]["impacts"] == []
+
+
+def test_the_truck_completes_its_block_route_within_1_5_m_of_every_waypoint(delivery_run):
+    _, r = delivery_run
+    assert "route done" in r["truck_events"]                   # two laps, then parked at its first waypoint
+    assert np.all(r["truck_nearest_m"] < 1.5), r["truck_nearest_m"]
 
 
 def test_target_sequence_drone_completes_and_teleop_drone_hovers(delivery_run):
