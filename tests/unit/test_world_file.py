@@ -6,6 +6,7 @@ import pytest
 
 from unetyemu_ecs import ConfigError, load_world, load_world_text
 from unetyemu_ecs.plugins import Registry
+from unetyemu_ecs.sensors.imu import ImuSensor
 
 from ..conftest import WORLDS
 
@@ -131,3 +132,30 @@ def test_every_problem_of_a_file_is_reported_at_once():
 def test_missing_file_is_a_config_error():
     with pytest.raises(ConfigError, match="file not found"):
         load_world("/nonexistent/world.yaml")
+
+
+def test_sensors_all_attaches_every_installed_sensor_that_fits_and_components_keep_their_parameters():
+    text = """
+world: {name: s}
+scene: {generator: none}
+vehicles:
+  - {name: d1, type: quadrotor, pose: {position_m: [0, 0, 1]}, sensors: all, components: {imu: {rate_hz: 400}}}
+  - {name: c1, type: car, pose: {position_m: [10, 0, 1]}, sensors: [gps, lidar]}
+"""
+    world = load_world_text(text)
+    d1, c1 = world.entities
+    assert {"imu", "gps", "battery", "odometry", "lidar", "camera", "depth_camera"} <= set(d1.components)
+    assert d1.components["imu"] == ImuSensor(rate_hz=400.0)
+    assert {"gps", "lidar"} <= set(c1.components) and "battery" not in c1.components
+
+
+def test_an_unknown_sensor_name_is_reported_at_its_place():
+    text = """
+world: {name: s}
+scene: {generator: none}
+vehicles:
+  - {name: c1, type: car, pose: {position_m: [10, 0, 1]}, sensors: [gps, sonar]}
+"""
+    with pytest.raises(ConfigError) as err:
+        load_world_text(text)
+    assert "vehicles[0].sensors[1]" in str(err.value) and "unknown sensor 'sonar'" in str(err.value)

@@ -20,7 +20,7 @@ from typing import Annotated, Any, Literal
 
 import numpy as np
 
-from ..plugins import GROUP_SYSTEMS, Registry
+from ..plugins import GROUP_SENSORS, GROUP_SYSTEMS, Registry
 from ..scene.config import SceneConfig
 from ..scene.layout import build_layout
 from ..scene.primitives import SceneLayout
@@ -94,6 +94,9 @@ class VehicleSpec:
     preset: str = "medium"
     pose: PoseSpec
     components: dict[str, Any] = field(default_factory=dict)
+    # sensors attached with their defaults: "all" (every installed sensor that fits the vehicle) or
+    # a list of sensor keys; a sensor also under `components` keeps the parameters given there
+    sensors: Literal["all"] | list[Annotated[str, NonEmpty()]] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         known = presets_for(self.type)
@@ -282,6 +285,18 @@ def _resolve_entity(group: str, i: int, item: VehicleSpec | PackageSpec, layout:
             blocks[key] = {**blocks[key], **block}
         else:
             blocks[key] = block
+    if isinstance(item, VehicleSpec) and item.sensors:             # sensors with their defaults
+        if item.sensors == "all":
+            wanted = [k for k, e in registry.entries[GROUP_SENSORS].items() if kind in e.spec.applies_to]
+        else:
+            wanted = list(item.sensors)
+            for j, key in enumerate(wanted):
+                if key not in registry.entries[GROUP_SENSORS]:
+                    issues.append(src.issue((group, i, "sensors", j), f"unknown sensor {key!r} (installed: "
+                                            f"{', '.join(sorted(registry.entries[GROUP_SENSORS])) or 'none'})"))
+            wanted = [k for k in wanted if k in registry.entries[GROUP_SENSORS]]
+        for key in wanted:
+            blocks.setdefault(key, {})
     for key, block in blocks.items():
         cpath: Path = (group, i, "components", key)
         try:
