@@ -30,7 +30,7 @@ from ..phases import Phase
 from ..physics.static_scene import RGBA
 from ..scene.primitives import SceneClass
 from ..world import StepContext
-from .base import MountedSensor, SensorSpec
+from .base import MountedSensor, SensorSample, SensorSpec
 from .lidar import RaycastSensorSystem
 from .messages import header, msg_type
 from .raycast import MOVING_BODY, NO_HIT, ray_starts
@@ -157,6 +157,12 @@ class _CameraSystem(RaycastSensorSystem):
             first += n
         return out
 
+    def publish_info(self, ctx: StepContext, s: MountedSensor, time_s: float) -> None:
+        """The CameraInfo of a frame, on ``<image topic's namespace>/camera_info`` (image_transport)."""
+        topic = s.topic.rsplit("/", 1)[0] + "/camera_info"
+        msg = camera_info(time_s, s.frame_id, s.spec.width, s.spec.height, s.spec.hfov_deg)
+        ctx.services.sensors.put(SensorSample(time_s, s.vehicle, f"{self.key}_info", topic, msg))
+
 
 _CLASS_RGB = np.zeros((256, 3))
 for _cls, _key in ((SceneClass.GROUND, "ground"), (SceneClass.ROAD, SceneClass.ROAD), (SceneClass.SIDEWALK, SceneClass.SIDEWALK),
@@ -192,17 +198,10 @@ class RgbCameraSystem(_CameraSystem):
             self.publish(ctx, s, time_s, image(time_s, s.frame_id, spec.width, spec.height, "rgb8", pixels))
             self.publish_info(ctx, s, time_s)
 
-    def publish_info(self, ctx: StepContext, s: MountedSensor, time_s: float) -> None:
-        from .base import SensorSample
-
-        topic = s.topic.rsplit("/", 1)[0] + "/camera_info"
-        msg = camera_info(time_s, s.frame_id, s.spec.width, s.spec.height, s.spec.hfov_deg)
-        ctx.services.sensors.put(SensorSample(time_s, s.vehicle, f"{self.key}_info", topic, msg))
-
-
-class DepthCameraSystem(RgbCameraSystem):
+class DepthCameraSystem(_CameraSystem):
     """Every depth camera that is due. Phase: SENSORS."""
 
+    phase = Phase.SENSORS
     order = 61
     spec_type = DepthCamera
     key = "depth_camera"
