@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from unetyemu_ecs import Simulation, load_world_text
 from unetyemu_ecs.frames import R_from_quat_xyzw

@@ -20,7 +20,7 @@ from typing import Annotated, Any, Literal
 
 import numpy as np
 
-from ..plugins import GROUP_SENSORS, GROUP_SYSTEMS, Registry
+from ..plugins import GROUP_SENSORS, Registry
 from ..scene.config import SceneConfig
 from ..scene.layout import build_layout
 from ..scene.primitives import SceneLayout

@@ -14,7 +14,7 @@ from typing import Annotated
 import numpy as np
 
 from ..config.schema import Ge, Gt
-from ..units import GRAVITY_M_S2, wrap_angle_rad
+from ..units import wrap_angle_rad
 
 SPEED_FOR_STEER_SCALE_M_S = 50.0   # the steering limit falls linearly to its scale at this speed
 

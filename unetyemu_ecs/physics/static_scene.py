@@ -20,7 +20,7 @@ import tempfile
 
 import pybullet as p
 
-from unetyemu_ecs.scene.primitives import Box, Cylinder, SceneClass, SceneLayout, Sphere
+from unetyemu_ecs.scene.primitives import Box, Cylinder, SceneClass, SceneLayout
 
 GROUND_FRICTION = 0.9          # dry asphalt/concrete against rubber
 RGBA = {

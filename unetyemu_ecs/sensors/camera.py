@@ -31,9 +31,9 @@ from ..physics.static_scene import RGBA
 from ..scene.primitives import SceneClass
 from ..world import StepContext
 from .base import MountedSensor, SensorSample, SensorSpec
-from .lidar import RaycastSensorSystem
+from .raycast_system import RaycastSensorSystem
 from .messages import header, msg_type
-from .raycast import MOVING_BODY, NO_HIT, ray_starts
+from .raycast import MOVING_BODY, NO_HIT
 
 # optical frame axes in the camera link (FLU): optical x = -link y, optical y = -link z, optical z = link x
 R_LINK_OPTICAL = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
@@ -133,29 +133,11 @@ class _CameraSystem(RaycastSensorSystem):
                   for _, (slot, look) in esper.get_components(FleetSlot, Appearance)}
         return np.array([by_row.get(int(r), np.full(3, 0.5)) for r in self._body_rows]).reshape(-1, 3)
 
-    def cast_frames(self, ctx: StepContext, due: list[MountedSensor]) -> list[tuple[Any, np.ndarray, np.ndarray]]:
-        """Cast every due camera; return (hits slice, ray z component, world dirs) per camera."""
-        pos, R = self.sensor_poses(ctx, due)
-        origins, dirs_w, start_s, start_d, counts = [], [], [], [], []
-        for k, s in enumerate(due):
-            d_link, _, exit_m = self._rays[s.entity]
-            d_w = d_link @ R[k].T
-            origins.append(np.broadcast_to(pos[k], d_w.shape))
-            dirs_w.append(d_w)
-            a, b = ray_starts(exit_m)
-            start_s.append(a)
-            start_d.append(b)
-            counts.append(len(d_link))
-        dirs_all = np.vstack(dirs_w)
-        hits = self.world.cast(np.vstack(origins), dirs_all, np.concatenate(start_s), np.concatenate(start_d),
-                               self.moving_boxes(ctx))
-        out, first = [], 0
-        for k, s in enumerate(due):
-            n = counts[k]
-            sl = slice(first, first + n)
-            out.append((hits, sl, dirs_all[sl]))
-            first += n
-        return out
+    def cast_frames(self, ctx: StepContext, due: list[MountedSensor]) -> list[tuple[Any, slice, np.ndarray]]:
+        """Cast every due camera in one batch; per camera: (hits, its slice of them, its world directions)."""
+        hits, dirs_all, slices = self.cast_due(ctx, due, [(self._rays[s.entity][0], self._rays[s.entity][2])
+                                                          for s in due])
+        return [(hits, sl, dirs_all[sl]) for sl in slices]
 
     def publish_info(self, ctx: StepContext, s: MountedSensor, time_s: float) -> None:
         """The CameraInfo of a frame, on ``<image topic's namespace>/camera_info`` (image_transport)."""

@@ -18,18 +18,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Annotated, Any, ClassVar
 
-import esper
 import numpy as np
 
-from ..components.body import FleetSlot, RigidBody
 from ..config.schema import Ge, Gt, Le, Lt
-from ..frames import R_from_quat_xyzw
 from ..phases import Phase
 from ..scene.primitives import SceneClass
 from ..world import StepContext
-from .base import MountedSensor, SensorSpec, SensorSystemBase
+from .base import MountedSensor, SensorSpec
 from .messages import header, msg_type
-from .raycast import MOVING_BODY, RaycastWorld, exit_distance_m, import_open3d, ray_starts
+from .raycast import MOVING_BODY
+from .raycast_system import RaycastSensorSystem
 
 # Reflectivity per scene class (ours: orders of magnitude of concrete, asphalt, vegetation), and bodies.
 REFLECTIVITY = {SceneClass.GROUND: 0.3, SceneClass.ROAD: 0.15, SceneClass.SIDEWALK: 0.35,
@@ -92,49 +90,6 @@ def read_points(msg: Any) -> np.ndarray:
     return np.frombuffer(np.asarray(msg.data, dtype=np.uint8).tobytes(), dtype=POINT_DTYPE)
 
 
-class RaycastSensorSystem(SensorSystemBase):
-    """A sensor system that casts rays into the world: the shared RaycastWorld and the moving boxes."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        import_open3d()                     # fail when the simulation is built, not at the first cast
-        self.world: RaycastWorld | None = None
-        self._body_rows = np.empty(0, dtype=np.intp)
-        self._body_half = np.empty((0, 3))
-
-    def gather(self, ctx: StepContext) -> None:
-        super().gather(ctx)
-        if ctx.services.raycast is None:
-            from ..scene.mesh import triangulate
-
-            mesh = triangulate(ctx.services.layout)
-            ctx.services.raycast = RaycastWorld(mesh.vertices_m, mesh.triangles, mesh.cls)
-        self.world = ctx.services.raycast
-        found = sorted((slot.row, body.half_extents_m)
-                       for _, (slot, body) in esper.get_components(FleetSlot, RigidBody))
-        self._body_rows = np.array([r for r, _ in found], dtype=np.intp)
-        self._body_half = np.array([h for _, h in found], dtype=float).reshape(-1, 3)
-
-    def own_exit_m(self, sensor: MountedSensor, dirs_sensor: np.ndarray) -> np.ndarray:
-        """Where each ray (sensor frame) leaves the sensor's own vehicle box [m]."""
-        half = self._body_half[np.searchsorted(self._body_rows, sensor.row)]
-        dirs_body = dirs_sensor @ R_from_quat_xyzw(sensor.spec.mount_quat_xyzw()).T
-        return exit_distance_m(np.asarray(sensor.spec.mount_xyz_m, dtype=float), dirs_body, half)
-
-    def sensor_poses(self, ctx: StepContext, due: list[MountedSensor]) -> tuple[np.ndarray, np.ndarray]:
-        """Position (N, 3) and attitude (N, 3, 3) in ENU of each sensor frame."""
-        f = ctx.fleet
-        rows = np.array([s.row for s in due])
-        R_body = R_from_quat_xyzw(f.quat_enu_flu_xyzw[rows])
-        mounts = np.array([s.spec.mount_xyz_m for s in due], dtype=float)
-        R_mount = R_from_quat_xyzw(np.array([s.spec.mount_quat_xyzw() for s in due]))
-        return f.pos_enu_m[rows] + np.einsum("nij,nj->ni", R_body, mounts), np.einsum("nij,njk->nik", R_body, R_mount)
-
-    def moving_boxes(self, ctx: StepContext) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        f = ctx.fleet
-        return f.pos_enu_m[self._body_rows], f.quat_enu_flu_xyzw[self._body_rows], self._body_half
-
-
 class LidarSystem(RaycastSensorSystem):
     """Every LiDAR that is due, cast in one batch. Phase: SENSORS. Reads: fleet poses, body boxes."""
 
@@ -162,31 +117,14 @@ class LidarSystem(RaycastSensorSystem):
             self._patterns[s.entity] = (dirs_s, rings, self.own_exit_m(s, dirs_s))
 
     def measure(self, ctx: StepContext, due: list[MountedSensor], time_s: float) -> None:
-        pos_sensor, R_sensor = self.sensor_poses(ctx, due)
-        origins, dirs_w, start_s, start_d, counts = [], [], [], [], []
-        for k, s in enumerate(due):
-            dirs_s, _, exit_m = self._patterns[s.entity]
-            d_w = dirs_s @ R_sensor[k].T
-            origins.append(np.broadcast_to(pos_sensor[k], d_w.shape))
-            dirs_w.append(d_w)
-            a, b = ray_starts(exit_m)
-            start_s.append(a)
-            start_d.append(b)
-            counts.append(len(dirs_s))
-        dirs_all = np.vstack(dirs_w)
-        hits = self.world.cast(np.vstack(origins), dirs_all, np.concatenate(start_s), np.concatenate(start_d),
-                               self.moving_boxes(ctx))
+        hits, dirs_all, slices = self.cast_due(ctx, due, [(self._patterns[s.entity][0], self._patterns[s.entity][2])
+                                                          for s in due])
         intensity_all = self._reflectivity[np.clip(hits.cls, 0, 255)] * np.abs(np.einsum("ij,ij->i", hits.normal, dirs_all))
-        first = 0
-        for k, s in enumerate(due):
-            n = counts[k]
+        for s, sl in zip(due, slices):
             dirs_s, rings, _ = self._patterns[s.entity]
-            rng = hits.t[first:first + n]
+            rng = hits.t[sl]
             keep = np.isfinite(rng) & (rng <= s.spec.max_range_m) & (rng >= s.spec.min_range_m)
             pts = dirs_s[keep] * rng[keep, None]
-            self.publish(ctx, s, time_s, pointcloud2(pts, intensity_all[first:first + n][keep], rings[keep], time_s,
-                                                     s.frame_id))
-            first += n
+            self.publish(ctx, s, time_s, pointcloud2(pts, intensity_all[sl][keep], rings[keep], time_s, s.frame_id))
 
-
-__all__ = ["LidarSensor", "LidarSystem", "RaycastSensorSystem", "pointcloud2", "ray_directions_sensor", "read_points"]
+__all__ = ["LidarSensor", "LidarSystem", "pointcloud2", "ray_directions_sensor", "read_points"]
