@@ -37,6 +37,7 @@ from .transport.bus import Arm, CmdVel, Drive, DriveRoute, Inbox, LoadMission, S
 from .world import EcsWorld, SimServices, StepContext
 
 PACKAGE_RGBA = (0.80, 0.60, 0.30, 1.0)
+ROS2_BACKENDS = ("off", "dds")      # the rclpy backend is not built yet
 
 
 @dataclass(frozen=True)
@@ -66,11 +67,18 @@ class Simulation:
     world : a validated :class:`WorldDefinition` (see :func:`load_world`)
     gui : open the PyBullet GUI instead of running headless
     out_dir : where to write logs; ``None`` writes nothing
+    ros2 : ``"dds"`` publishes every sensor message, TF and ``/clock`` as ROS 2 topics over DDS
+        (no ROS install needed); ``"off"`` (default) publishes nothing
     """
 
-    def __init__(self, world: WorldDefinition, *, gui: bool = False, out_dir: str | Path | None = None) -> None:
+    def __init__(self, world: WorldDefinition, *, gui: bool = False, out_dir: str | Path | None = None,
+                 ros2: str = "off") -> None:
+        if ros2 not in ROS2_BACKENDS:
+            raise ValueError(f"ros2 must be one of {', '.join(ROS2_BACKENDS)}, got {ros2!r}")
         spec = world.spec.world
         self.definition = world
+        self.ros2 = ros2
+        self._ros2_backend = None
         self.dt_s = 1.0 / spec.physics_hz
         self.seed = spec.seed
         self.rng = np.random.default_rng(spec.seed)
@@ -160,6 +168,12 @@ class Simulation:
         systems += [cls() for cls in classes]
         for key, cfg in world.systems.items():
             systems.append(world.registry.system_entry(key).spec.system(cfg))
+        if self.ros2 == "dds":
+            from .systems.ros2_out import Ros2PublisherSystem
+            from .transport.ros2.dds_backend import DdsPublisher
+
+            self._ros2_backend = DdsPublisher()
+            systems.append(Ros2PublisherSystem(self._ros2_backend))
         if self.out_dir is not None:
             self.out_dir.mkdir(parents=True, exist_ok=True)
             spec = world.spec.world
@@ -431,6 +445,9 @@ class Simulation:
         """Flush and close logs, disconnect PyBullet and delete the esper world; safe to call twice."""
         if self._log is not None:
             self._log.close()
+        if self._ros2_backend is not None:
+            self._ros2_backend.close()
+            self._ros2_backend = None
         if self.physics is not None:
             self.physics.close()
         self.ecs.close()

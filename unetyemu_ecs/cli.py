@@ -66,6 +66,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", type=Path, default=None, metavar="DIR",
                      help="output directory (default: runs/<world>-<date>-<time>)")
     run.add_argument("--quiet", action="store_true", help="no progress display")
+    run.add_argument("--ros2", choices=["off", "dds"], default="off",
+                     help="publish sensors, TF and /clock as ROS 2 topics over DDS (default off; with dds the "
+                          "default pace is real time)")
 
     val = sub.add_parser("validate", help="check world files without running them")
     val.add_argument("worlds", type=Path, nargs="+", metavar="WORLD")
@@ -140,13 +143,13 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(f"error: invalid world file:\n{exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     if args.rate is None:
-        rate = 1.0 if args.gui else None
+        rate = 1.0 if (args.gui or args.ros2 != "off") else None
     else:
         rate = None if args.rate == float("inf") else args.rate
     duration = args.duration if args.duration is not None else world.spec.world.duration_s
     out = args.out or Path("runs") / f"{world.name}-{time.strftime('%Y%m%d-%H%M%S')}"
     try:
-        sim = Simulation(world, gui=args.gui, out_dir=out)
+        sim = Simulation(world, gui=args.gui, out_dir=out, ros2=args.ros2)
     except (PhysicsError, SensorUnavailable) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_FAILURE
