@@ -79,6 +79,7 @@ class Simulation:
         self.definition = world
         self.ros2 = ros2
         self._ros2_backend = None
+        self._ros2_listener = None
         self.dt_s = 1.0 / spec.physics_hz
         self.seed = spec.seed
         self.rng = np.random.default_rng(spec.seed)
@@ -169,11 +170,7 @@ class Simulation:
         for key, cfg in world.systems.items():
             systems.append(world.registry.system_entry(key).spec.system(cfg))
         if self.ros2 == "dds":
-            from .systems.ros2_out import Ros2PublisherSystem
-            from .transport.ros2.dds_backend import DdsPublisher
-
-            self._ros2_backend = DdsPublisher()
-            systems.append(Ros2PublisherSystem(self._ros2_backend))
+            systems.append(self._start_ros2_dds(world))
         if self.out_dir is not None:
             self.out_dir.mkdir(parents=True, exist_ok=True)
             spec = world.spec.world
@@ -182,6 +179,27 @@ class Simulation:
             systems.append(self._log)
         for s in systems:
             self.ecs.add_system(s)
+
+    def _start_ros2_dds(self, world: WorldDefinition) -> Any:
+        """Open the DDS participant, start listening to the command topics; return the publisher system."""
+        import queue
+
+        from .systems.ros2_out import Ros2PublisherSystem
+        from .transport.ros2.dds_backend import DdsCommandListener, DdsPublisher
+        from .transport.ros2.inbound import COMMAND_TOPICS, apply_command
+
+        self._ros2_backend = DdsPublisher()
+        notices: queue.SimpleQueue = queue.SimpleQueue()
+        kinds = {e.name: e.kind for e in world.entities if e.kind != "package"}
+
+        def on_message(vehicle: str, topic_kind: str, topic: str, sample: Any) -> None:   # transport thread
+            try:
+                apply_command(self, vehicle, kinds[vehicle], topic_kind, sample)
+            except ValueError as exc:
+                notices.put((vehicle, topic, str(exc)))
+
+        self._ros2_listener = DdsCommandListener(self._ros2_backend, kinds, COMMAND_TOPICS, on_message)
+        return Ros2PublisherSystem(self._ros2_backend, notices)
 
     # -- clock -------------------------------------------------------------------------------
     @property
@@ -198,9 +216,13 @@ class Simulation:
         """Advance ``n`` physics steps, running every phase in order each step."""
         with self.ecs.active():
             for _ in range(int(n)):
-                self.services.sensors.this_step.clear()
-                self.ecs.process(self._context())
-                self.step_count += 1
+                self._step_once()
+
+    def _step_once(self) -> None:
+        """One physics step through every phase (the esper world must be active)."""
+        self.services.sensors.this_step.clear()
+        self.ecs.process(self._context())
+        self.step_count += 1
 
     def stop(self) -> None:
         """Ask a running :meth:`run` to return after the current step (thread-safe)."""
@@ -228,8 +250,7 @@ class Simulation:
         try:
             with self.ecs.active():
                 while self.step_count < end_step and not self._stop_requested:
-                    self.ecs.process(self._context())
-                    self.step_count += 1
+                    self._step_once()
                     now = time.perf_counter()
                     if rate is not None:
                         ahead_s = wall0 + (self.step_count - start_step) * self.dt_s / rate - now
@@ -445,6 +466,9 @@ class Simulation:
         """Flush and close logs, disconnect PyBullet and delete the esper world; safe to call twice."""
         if self._log is not None:
             self._log.close()
+        if self._ros2_listener is not None:
+            self._ros2_listener.close()
+            self._ros2_listener = None
         if self._ros2_backend is not None:
             self._ros2_backend.close()
             self._ros2_backend = None

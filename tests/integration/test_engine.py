@@ -138,3 +138,18 @@ def test_same_seed_gives_bit_identical_trajectories():
             return sim.fleet.pos_enu_m[sim.fleet.rows].tobytes() + sim.fleet.quat_enu_flu_xyzw[sim.fleet.rows].tobytes()
 
     assert final_state() == final_state()
+
+
+def test_run_and_step_both_hand_publishers_only_this_steps_sensor_messages():
+    from unetyemu_ecs import Simulation, load_world_text
+    text = """
+world: {name: t, physics_hz: 240, seed: 1}
+scene: {generator: none}
+vehicles:
+  - {name: d1, type: quadrotor, pose: {position_m: [0, 0, 0.1]}, components: {imu: {rate_hz: 240}}}
+"""
+    with Simulation(load_world_text(text)) as sim:
+        sim.run(duration=1.0)
+        assert len([s for s in sim.services.sensors.this_step if s.sensor == "imu"]) == 1
+        sim.step(10)
+        assert len([s for s in sim.services.sensors.this_step if s.sensor == "imu"]) == 1

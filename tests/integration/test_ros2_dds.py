@@ -99,3 +99,52 @@ def test_every_writer_announces_xcdr1_and_ros2_names_in_discovery(exchange):
         pkg, _, name = type_name.split("/")
         assert writer["type"] == f"{pkg}::msg::dds_::{name}_", topic
         assert writer["xcdr1"] and not writer["xcdr2"], topic
+
+
+SENDER = LISTENER.parent / "send.py"
+
+COMMANDS = [
+    ["/d1/target", "std_msgs/msg/Float32MultiArray", {"data": [5.0, 4.0, 6.0, 90.0, 3.0]}],
+    ["/c1/cmd_vel", "geometry_msgs/msg/Twist", {"linear": {"x": 3.0}, "angular": {"z": 0.0}}],
+    # garbage: wrong length, NaN, bad JSON, a drone asked for cmd_vel, a car beyond its top speed
+    ["/d1/teleop", "std_msgs/msg/Float32MultiArray", {"data": [0.1, 0.2]}],
+    ["/d1/target", "std_msgs/msg/Float32MultiArray", {"data": [1.0, "NaN", 3.0, 0.0, 2.0]}],
+    ["/d1/mission", "std_msgs/msg/String", {"data": "{not json"}],
+    ["/d1/cmd_vel", "geometry_msgs/msg/Twist", {"linear": {"x": 1.0}}],
+    ["/c1/cmd_vel", "geometry_msgs/msg/Twist", {"linear": {"x": 90.0}}],
+    # a good mission last: fly to (-5, 5) at 4 m and land there
+    ["/d1/mission", "std_msgs/msg/String", {"data": json.dumps({"name": "hop", "steps": [
+        {"type": "cruise", "waypoints": [{"x": -5.0, "y": 5.0, "z": 4.0}]}, {"type": "land"}]})}],
+]
+
+
+def test_commands_from_a_ros2_peer_drive_the_vehicles_and_garbage_is_rejected_with_reasons():
+    cmds = json.loads(json.dumps(COMMANDS).replace('"NaN"', "NaN"))
+    peer = subprocess.Popen([sys.executable, str(SENDER), "30.0", json.dumps(cmds)], cwd=SENDER.parent,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert peer.stdout.readline().strip() == "ready", peer.stderr.read()
+    with Simulation(load_world_text(WORLD), ros2="dds") as sim:
+        start = time.monotonic()
+        car_moved = False
+        while time.monotonic() - start < 25.0 and peer.poll() is None:
+            sim.run(duration=0.1, rate=1.0)
+            car_moved |= bool(sim.position_enu_m("c1")[0] > -5.0)
+            if (sim.mission_status("d1") or {}).get("state") == "completed":
+                break
+        status = sim.mission_status("d1")
+        events = [text for _, who, text in sim.events]
+        final = sim.position_enu_m("d1")
+    out, err = peer.communicate(timeout=60)
+    got = json.loads(out.strip().splitlines()[-1])
+    # THEN the good commands were executed: the target (replaced 1.4 s later by the mission), the
+    # car's cmd_vel (it drove off), and the mission (flown and landed where it said)
+    assert "target set to (5.0, 4.0, 6.0)" in events and car_moved
+    assert status is not None and status["mission"] == "hop" and status["state"] == "completed", events
+    assert np.linalg.norm(final[:2] - [-5.0, 5.0]) < 1.0 and final[2] < 0.5
+    # AND each piece of garbage was rejected with its reason, in the event log and on /rosout
+    reasons = ["4 values", "finite", "mission rejected", "cmd_vel drives cars", "top speed"]
+    for reason in reasons:
+        assert any(reason in e for e in events), (reason, events)
+        assert any(reason in line for line in got["rosout"]), (reason, got["rosout"])
+    # AND the mission's progress reached the peer as status messages
+    assert any('"completed"' in s for s in got["status"]) or any('"running"' in s for s in got["status"])

@@ -52,18 +52,21 @@ def field(kind, detail):
     return t.sequence[field(*detail[0])]
 
 
+def qos_for(topic: str) -> Qos:
+    durable = topic == "/tf_static"
+    return Qos(Policy.Reliability.Reliable(duration(seconds=1)),
+               Policy.Durability.TransientLocal if durable else Policy.Durability.Volatile,
+               Policy.History.KeepLast(1 if durable else 100))
+
+
 def main() -> None:
     seconds = float(sys.argv[1])
     wanted = dict(arg.split("=", 1) for arg in sys.argv[2:])
-    domain = Domain(0, CONFIG)  # noqa: F841  (keeps the configuration alive)
+    _domain = Domain(0, CONFIG)  # noqa: F841  (keeps the configuration alive)
     dp = DomainParticipant(0)
     readers = {}
     for topic, type_name in wanted.items():
-        durable = topic == "/tf_static"
-        qos = Qos(Policy.Reliability.Reliable(duration(seconds=1)),
-                  Policy.Durability.TransientLocal if durable else Policy.Durability.Volatile,
-                  Policy.History.KeepLast(1 if durable else 100))
-        readers[topic] = DataReader(dp, Topic(dp, "rt" + topic, idl(type_name)), qos=qos)
+        readers[topic] = DataReader(dp, Topic(dp, "rt" + topic, idl(type_name)), qos=qos_for(topic))
     print("ready", flush=True)
     counts = {topic: 0 for topic in wanted}
     last: dict[str, bytes] = {}

@@ -1,34 +1,72 @@
-"""OUTPUTS phase: publish this step's sensor, odometry and TF messages and ``/clock`` over ROS 2."""
+"""OUTPUTS phase: the simulation's side of ROS 2 — publish this step's messages, ``/clock``, mission
+status and command rejections (``/rosout``)."""
 
 from __future__ import annotations
 
+import json
+import queue
+
 import esper
 
+from ..components.body import Identity
+from ..components.mission import MissionRuntime
 from ..phases import Phase
 from ..sensors.messages import msg_type, stamp
 from ..world import StepContext
 
+STATUS_HZ = 10.0            # how often mission status is checked (published when it changes)
+ROSOUT_WARN = 30            # rcl_interfaces/Log WARN
+NODE_NAME = "unetyemu_sim"
+
 
 class Ros2PublisherSystem(esper.Processor):
-    """Hands every message of this step to the ROS 2 backend, plus ``/clock`` each step.
+    """Hands every message of this step to the ROS 2 backend, and more.
 
-    Phase: OUTPUTS (order 50, after the sensors and TF). Reads: ``services.sensors.this_step``.
-    A message that cannot be published is reported once per topic in the event log; the
-    simulation goes on.
+    Phase: OUTPUTS (order 50, after the sensors and TF). Publishes: every sample of
+    ``services.sensors.this_step`` on its topic, ``/clock`` each step, ``/<v>/mission/status``
+    (std_msgs/String JSON) when a drone's mission status changes, and every rejected command as a
+    WARN on ``/rosout`` (also in the event log). Rejections found on the transport's thread arrive
+    through ``notices`` (a thread-safe queue of ``(vehicle, topic, reason)``). A message that cannot
+    be published is reported once per topic in the event log; the simulation goes on.
     """
 
     phase = Phase.OUTPUTS
     order = 50
 
-    def __init__(self, backend) -> None:
+    def __init__(self, backend, notices: queue.SimpleQueue | None = None) -> None:
         self.backend = backend
+        self.notices = notices if notices is not None else queue.SimpleQueue()
         self._failed: set[str] = set()
+        self._events_seen = 0
+        self._status: dict[str, str] = {}
+        self._next_status_s = 0.0
 
     def process(self, ctx: StepContext) -> None:
-        clock = msg_type("rosgraph_msgs/msg/Clock")(clock=stamp(ctx.sim_time_s + ctx.dt_s))
-        self._publish(ctx, "/clock", clock)
+        t = ctx.sim_time_s + ctx.dt_s
+        while True:
+            try:
+                vehicle, topic, reason = self.notices.get_nowait()
+            except queue.Empty:
+                break
+            ctx.services.note(ctx.sim_time_s, vehicle, f"rejected {topic}: {reason}")
+        self._publish(ctx, "/clock", msg_type("rosgraph_msgs/msg/Clock")(clock=stamp(t)))
         for sample in ctx.services.sensors.this_step:
             self._publish(ctx, sample.topic, sample.msg)
+        events = ctx.services.events
+        for _, vehicle, text in events[self._events_seen:]:
+            if text.startswith("rejected"):
+                log = msg_type("rcl_interfaces/msg/Log")(stamp=stamp(t), level=ROSOUT_WARN, name=NODE_NAME,
+                                                         msg=f"{vehicle}: {text}", file="", function="", line=0)
+                self._publish(ctx, "/rosout", log)
+        self._events_seen = len(events)
+        if t + 1e-9 >= self._next_status_s:
+            self._next_status_s = t + 1.0 / STATUS_HZ
+            String = msg_type("std_msgs/msg/String")
+            for ent, (ident, rt) in esper.get_components(Identity, MissionRuntime):
+                text = json.dumps(rt.status(), sort_keys=True)
+                if self._status.get(ident.name) != text:
+                    self._status[ident.name] = text
+                    self._publish(ctx, f"/{ident.name}/mission/status", String(data=text))
 
     def _publish(self, ctx: StepContext, topic: str, msg) -> None:
         try:

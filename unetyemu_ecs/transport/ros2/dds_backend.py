@@ -82,4 +82,48 @@ class DdsPublisher:
         self._domain = None
 
 
-__all__ = ["LOOPBACK_CONFIG", "DdsPublisher", "dds_topic_name"]
+
+
+POLL_S = 0.01
+
+
+class DdsCommandListener:
+    """Reads the command topics of every vehicle on its own thread and hands each message to
+    ``on_message(vehicle, topic_kind, topic, sample)``; the loop never waits for DDS."""
+
+    def __init__(self, publisher: DdsPublisher, vehicles: dict[str, str], topic_types: dict[str, str],
+                 on_message: Any) -> None:
+        import threading
+
+        from cyclonedds.sub import DataReader
+        from cyclonedds.topic import Topic
+
+        dp = publisher.participant
+        self._readers: list[tuple[Any, str, str, str]] = []          # reader, vehicle, topic kind, topic
+        qos = DdsPublisher.qos_for("/cmd")
+        for vehicle in vehicles:
+            for topic_kind, type_name in topic_types.items():
+                ros_topic = f"/{vehicle}/{topic_kind}"
+                reader = DataReader(dp, Topic(dp, dds_topic_name(ros_topic), idl_type(type_name), qos=qos), qos=qos)
+                self._readers.append((reader, vehicle, topic_kind, ros_topic))
+        self._on_message = on_message
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="unetyemu-ros2-commands", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        # polled, not a WaitSet: waiting inside cyclonedds holds the GIL and starves the sim loop;
+        # an Event wait releases it (POLL_S of latency, ~10 us of work per reader per poll)
+        while not self._stop.wait(POLL_S):
+            for reader, vehicle, topic_kind, ros_topic in self._readers:
+                for sample in reader.take(N=32):
+                    if hasattr(sample, "serialize"):                # skip invalid samples (writer gone)
+                        self._on_message(vehicle, topic_kind, ros_topic, sample)
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        self._readers.clear()
+
+
+__all__ = ["LOOPBACK_CONFIG", "DdsCommandListener", "DdsPublisher", "dds_topic_name"]

@@ -1,0 +1,69 @@
+"""ROS 2 command topics -> simulation commands, validated (DESIGN.md §6).
+
+``/<v>/mission`` (std_msgs/String, mission JSON), ``/<v>/target`` (std_msgs/Float32MultiArray
+``[x, y, z, yaw_deg, speed]``), ``/<v>/teleop`` (Float32MultiArray: drone ``[throttle, pitch,
+roll, yaw]``, car ``[throttle, brake, steering]``), ``/<v>/cmd_vel`` (geometry_msgs/Twist; cars:
+``linear.x``, ``angular.z``). Each message becomes one call of the simulation's command API, which
+validates it and queues it for the loop (thread-safe); anything wrong (bad JSON, wrong array
+length, NaN/inf, out of range, a drone sent cmd_vel) raises ``ValueError`` with the reason.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from ...config.schema import ConfigError
+
+COMMAND_TOPICS = {"mission": "std_msgs/msg/String", "target": "std_msgs/msg/Float32MultiArray",
+                  "teleop": "std_msgs/msg/Float32MultiArray", "cmd_vel": "geometry_msgs/msg/Twist"}
+
+
+def _finite(values: list[float], what: str) -> list[float]:
+    out = [float(v) for v in values]
+    if not all(math.isfinite(v) for v in out):
+        raise ValueError(f"{what} must be finite numbers, got {out}")
+    return out
+
+
+def apply_command(sim: Any, vehicle: str, kind: str, topic_kind: str, msg: Any) -> None:
+    """Turn one inbound message (a cyclonedds struct of the topic's type) into a command of ``sim``.
+
+    ``kind`` is the vehicle's kind (``quadrotor`` or ``car``). Raises ``ValueError`` with the reason.
+    """
+    try:
+        if topic_kind == "mission":
+            if kind != "quadrotor":
+                raise ValueError("missions are for drones; drive a car with target, teleop or cmd_vel")
+            sim.load_mission(vehicle, str(msg.data))
+        elif topic_kind == "target":
+            values = list(msg.data)
+            if len(values) != 5:
+                raise ValueError(f"target needs [x, y, z, yaw_deg, speed] (5 values), got {len(values)}")
+            x, y, z, yaw_deg, speed = _finite(values, "target values")
+            if speed <= 0.0:
+                raise ValueError(f"target speed must be > 0, got {speed}")
+            sim.set_target(vehicle, x, y, z, yaw_deg=yaw_deg if kind == "quadrotor" else None, speed=speed)
+        elif topic_kind == "teleop":
+            values = list(msg.data)
+            if kind == "quadrotor":
+                if len(values) != 4:
+                    raise ValueError(f"drone teleop needs [throttle, pitch, roll, yaw] (4 values), got {len(values)}")
+                sim.teleop(vehicle, *_finite(values, "teleop sticks"))
+            else:
+                if len(values) != 3:
+                    raise ValueError(f"car teleop needs [throttle, brake, steering] (3 values), got {len(values)}")
+                sim.drive(vehicle, *_finite(values, "car teleop"))
+        elif topic_kind == "cmd_vel":
+            if kind != "car":
+                raise ValueError("cmd_vel drives cars; fly a drone with target, mission or teleop")
+            lin = _finite([msg.linear.x, msg.linear.y, msg.linear.z], "cmd_vel linear")
+            ang = _finite([msg.angular.x, msg.angular.y, msg.angular.z], "cmd_vel angular")
+            sim.cmd_vel(vehicle, lin[0], ang[2])
+        else:
+            raise ValueError(f"unknown command topic {topic_kind!r}")
+    except ConfigError as exc:
+        raise ValueError(f"mission rejected: {exc}") from None
+
+
+__all__ = ["COMMAND_TOPICS", "apply_command"]
