@@ -135,6 +135,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .config.world_file import load_world
     from .physics.client import PhysicsError
     from .sensors.raycast import SensorUnavailable
+    from .transport.ros2.dds_backend import Ros2Error
     from .summary import build_summary, format_summary, write_summary
 
     try:
@@ -150,7 +151,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     out = args.out or Path("runs") / f"{world.name}-{time.strftime('%Y%m%d-%H%M%S')}"
     try:
         sim = Simulation(world, gui=args.gui, out_dir=out, ros2=args.ros2)
-    except (PhysicsError, SensorUnavailable) as exc:
+    except (PhysicsError, SensorUnavailable, Ros2Error) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_FAILURE
     except OSError as exc:

@@ -130,3 +130,12 @@ def test_ctrl_c_ends_the_run_cleanly_keeping_logs_and_printing_the_summary(tmp_p
     assert len(rows) >= 10
     assert abs(float(rows[-1]["time_s"]) - summary["sim_time_s"]) <= 0.1 + 1e-9
     assert all(value != "" for value in rows[-1].values())
+
+
+def test_a_bad_ros_domain_id_is_a_clear_error_not_a_traceback(tmp_path):
+    env = {**os.environ, "ROS_DOMAIN_ID": "abc"}
+    exe = shutil.which("unetyemu")
+    cmd = [exe] if exe else [sys.executable, "-m", "unetyemu_ecs.cli"]
+    res = subprocess.run([*cmd, "run", str(WORLDS / "empty.yaml"), "--ros2", "dds", "--duration", "0.1",
+                          "--out", str(tmp_path / "r")], cwd=REPO_ROOT, capture_output=True, text=True, timeout=120, env=env)
+    assert res.returncode == 1 and "ROS_DOMAIN_ID must be an integer" in res.stderr and "Traceback" not in res.stderr

@@ -26,6 +26,22 @@ TRANSIENT_LOCAL_TOPICS = ("/tf_static",)
 MAX_BLOCKING_MS = 20     # a reliable write waits at most this for a slow (or dead) reader, then fails
 
 
+class Ros2Error(RuntimeError):
+    """ROS 2 cannot start here (bad ROS_DOMAIN_ID, cyclonedds missing or failing); the message says why."""
+
+
+def domain_from_env() -> int:
+    """``ROS_DOMAIN_ID`` (0 when unset), checked: ROS 2 allows 0..232."""
+    text = os.environ.get("ROS_DOMAIN_ID", "").strip() or "0"
+    try:
+        value = int(text)
+    except ValueError:
+        raise Ros2Error(f"ROS_DOMAIN_ID must be an integer in 0..232, got {text!r}") from None
+    if not 0 <= value <= 232:
+        raise Ros2Error(f"ROS_DOMAIN_ID must be in 0..232, got {value}")
+    return value
+
+
 def dds_topic_name(ros_topic: str) -> str:
     """``/a/b`` -> ``rt/a/b`` (ROS 2's prefix for topics)."""
     return "rt" + (ros_topic if ros_topic.startswith("/") else "/" + ros_topic)
@@ -35,14 +51,19 @@ class DdsPublisher:
     """Writers for ROS 2 topics on one DDS participant; a writer is made on a topic's first message."""
 
     def __init__(self, domain_id: int | None = None) -> None:
-        from cyclonedds.domain import Domain, DomainParticipant
-
+        try:
+            from cyclonedds.domain import Domain, DomainParticipant
+        except ImportError as exc:
+            raise Ros2Error(f"the dds backend needs cyclonedds ({exc}): python3 -m pip install cyclonedds==11.0.1") from exc
         if domain_id is None:
-            domain_id = int(os.environ.get("ROS_DOMAIN_ID", "0"))
+            domain_id = domain_from_env()
         self.domain_id = domain_id
-        # the Domain object must live as long as the participant: it holds the configuration
-        self._domain = None if os.environ.get("CYCLONEDDS_URI") else Domain(domain_id, LOOPBACK_CONFIG)
-        self.participant = DomainParticipant(domain_id)
+        try:
+            # the Domain object must live as long as the participant: it holds the configuration
+            self._domain = None if os.environ.get("CYCLONEDDS_URI") else Domain(domain_id, LOOPBACK_CONFIG)
+            self.participant = DomainParticipant(domain_id)
+        except Exception as exc:        # cyclonedds reports a bad CYCLONEDDS_URI or interface this way
+            raise Ros2Error(f"cannot start DDS on domain {domain_id}: {exc}") from exc
         self._writers: dict[str, Any] = {}
 
     @staticmethod
@@ -126,4 +147,4 @@ class DdsCommandListener:
         self._readers.clear()
 
 
-__all__ = ["LOOPBACK_CONFIG", "DdsCommandListener", "DdsPublisher", "dds_topic_name"]
+__all__ = ["LOOPBACK_CONFIG", "DdsCommandListener", "DdsPublisher", "Ros2Error", "dds_topic_name", "domain_from_env"]
