@@ -31,4 +31,4 @@ def test_publish_pointcloud2_of_a_5760_point_scan(benchmark, publisher):
 def test_publish_rgb8_image(benchmark, publisher, width, height):
     pixels = np.random.default_rng(2).integers(0, 255, (height, width, 3), dtype=np.uint8)
     msg = image(1.0, "d1/camera_optical_frame", width, height, "rgb8", pixels)
-    benchmark.pedantic(lambda: publisher.publish(f"/d1/camera{width}/image_raw", msg), rounds=5, iterations=1)
+    benchmark.pedantic(lambda: publisher.publish(f"/d1/camera{width}/image_raw", msg), rounds=10, iterations=1, warmup_rounds=1)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 from typing import Any
 
+from ...sensors.messages import serialize
 from .dds_types import idl_type, to_idl
 
 LOOPBACK_CONFIG = """<CycloneDDS><Domain id="any">
@@ -40,6 +41,24 @@ def domain_from_env() -> int:
     if not 0 <= value <= 232:
         raise Ros2Error(f"ROS_DOMAIN_ID must be in 0..232, got {value}")
     return value
+
+
+# The one place that touches cyclonedds internals (pinned: cyclonedds==11.0.1): writing a sample that
+# is already serialised. Without it (another version), publishing falls back to the public path.
+try:
+    from cyclonedds._clayer import ddspy_write as _RAW_WRITE
+except ImportError:  # pragma: no cover - depends on the installed cyclonedds
+    _RAW_WRITE = None
+
+
+def _write_raw(writer: Any, cdr: bytes) -> None:
+    """Write XCDR1 bytes (with their 4-byte encapsulation header) as one sample of ``writer``."""
+    from cyclonedds.core import DDSException
+
+    pad = (-len(cdr)) % 4
+    ret = _RAW_WRITE(writer._ref, cdr + b"\0" * pad if pad else cdr)
+    if ret < 0:
+        raise DDSException(ret, f"while writing a sample with {writer!r}")
 
 
 def dds_topic_name(ros_topic: str) -> str:
@@ -90,8 +109,18 @@ class DdsPublisher:
         return w
 
     def publish(self, ros_topic: str, msg: Any) -> None:
-        """Write a rosbags message object on ``ros_topic``."""
-        self.writer(ros_topic, msg.__msgtype__).write(to_idl(msg))
+        """Write a rosbags message object on ``ros_topic``.
+
+        Fast path: rosbags serialises the message (numpy arrays as one copy: ~0.7 ms for a 640x480
+        image) and the bytes go to the writer as they are; the public path through cyclonedds'
+        own serializer walks large arrays element by element (~50 ms for the same image). Both
+        produce the same XCDR1 bytes (tested).
+        """
+        writer = self.writer(ros_topic, msg.__msgtype__)
+        if _RAW_WRITE is None:
+            writer.write(to_idl(msg))
+            return
+        _write_raw(writer, serialize(msg))
 
     @property
     def topics(self) -> list[str]:
