@@ -148,3 +148,19 @@ def test_commands_from_a_ros2_peer_drive_the_vehicles_and_garbage_is_rejected_wi
         assert any(reason in line for line in got["rosout"]), (reason, got["rosout"])
     # AND the mission's progress reached the peer as status messages
     assert any('"completed"' in s for s in got["status"]) or any('"running"' in s for s in got["status"])
+
+
+def test_the_simulator_is_a_ros2_node_whose_endpoints_announce_their_jazzy_type_hashes(exchange):
+    got, _ = exchange
+    from unetyemu_ecs.sensors.messages import typestore
+    # ros_discovery_info: one node, /unetyemu_sim, listing the writers the peer matched
+    assert got["graph"], "no ros_discovery_info received"
+    info = deserialize(bytes.fromhex(got["graph"][-1]), "rmw_dds_common/msg/ParticipantEntitiesInfo")
+    (node,) = info.node_entities_info_seq
+    assert (node.node_namespace, node.node_name) == ("/", "unetyemu_sim")
+    writer_gids = {bytes(g.data).hex() for g in node.writer_gid_seq}
+    for topic, type_name in TOPICS.items():
+        writer = got["writers"][topic]
+        assert writer["gid"][:32] in writer_gids, topic
+        assert writer["user_data"] == f"typehash={typestore().hash_rihs01(type_name)};", topic
+    assert len(node.reader_gid_seq) == 2 * 4             # mission, target, teleop, cmd_vel of d1 and c1

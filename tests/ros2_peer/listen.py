@@ -44,7 +44,7 @@ def idl(name: str) -> type:
 
 def field(kind, detail):
     if kind == Nodetype.BASE:
-        return BASE[detail[0]]
+        return t.bounded_str[detail[1]] if detail[0] == "string" and detail[1] else BASE[detail[0]]
     if kind == Nodetype.NAME:
         return idl(detail)
     if kind == Nodetype.ARRAY:
@@ -67,6 +67,11 @@ def main() -> None:
     readers = {}
     for topic, type_name in wanted.items():
         readers[topic] = DataReader(dp, Topic(dp, "rt" + topic, idl(type_name)), qos=qos_for(topic))
+    graph_qos = Qos(Policy.Reliability.Reliable(duration(seconds=1)), Policy.Durability.TransientLocal,
+                    Policy.History.KeepLast(1))
+    graph = DataReader(dp, Topic(dp, "ros_discovery_info", idl("rmw_dds_common/msg/ParticipantEntitiesInfo")),
+                       qos=graph_qos)
+    graph_info: list[str] = []
     print("ready", flush=True)
     counts = {topic: 0 for topic in wanted}
     last: dict[str, bytes] = {}
@@ -85,11 +90,15 @@ def main() -> None:
             for handle in reader.get_matched_publications():
                 pub = reader.get_matched_publication_data(handle)
                 rep = pub.qos[Policy.DataRepresentation]
+                user = pub.qos[Policy.Userdata]
                 representation[topic] = {"type": pub.type_name, "xcdr1": bool(rep and rep.use_cdrv0_representation),
-                                         "xcdr2": bool(rep and rep.use_xcdrv2_representation)}
+                                         "xcdr2": bool(rep and rep.use_xcdrv2_representation),
+                                         "user_data": user.data.decode() if user else "",
+                                         "gid": bytes(pub.key.bytes).hex()}
+        graph_info += [g.serialize(use_version_2=False).hex() for g in graph.take(N=10) if hasattr(g, "serialize")]
         time.sleep(0.01)
     print(json.dumps({"counts": counts, "last": {k: v.hex() for k, v in last.items()},
-                      "writers": representation}), flush=True)
+                      "writers": representation, "graph": graph_info}), flush=True)
 
 
 if __name__ == "__main__":

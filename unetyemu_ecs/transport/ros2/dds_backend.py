@@ -13,8 +13,12 @@ from __future__ import annotations
 import os
 from typing import Any
 
-from ...sensors.messages import serialize
+from ...sensors.messages import msg_type, serialize, typestore
 from .dds_types import idl_type, to_idl
+
+NODE_NAME = "unetyemu_sim"
+NODE_NAMESPACE = "/"
+DISCOVERY_TOPIC = "ros_discovery_info"     # no rt/ prefix: an rmw-level topic
 
 LOOPBACK_CONFIG = """<CycloneDDS><Domain id="any">
   <General><Interfaces><NetworkInterface name="lo"/></Interfaces><AllowMulticast>false</AllowMulticast>
@@ -61,6 +65,13 @@ def _write_raw(writer: Any, cdr: bytes) -> None:
         raise DDSException(ret, f"while writing a sample with {writer!r}")
 
 
+def _gid(guid: bytes) -> Any:
+    """An rmw Gid (16 bytes) of a DDS GUID."""
+    import numpy as np
+
+    return np.frombuffer(bytes(guid)[:16].ljust(16, b"\0"), dtype=np.uint8).copy()
+
+
 def dds_topic_name(ros_topic: str) -> str:
     """``/a/b`` -> ``rt/a/b`` (ROS 2's prefix for topics)."""
     return "rt" + (ros_topic if ros_topic.startswith("/") else "/" + ros_topic)
@@ -77,25 +88,61 @@ class DdsPublisher:
         if domain_id is None:
             domain_id = domain_from_env()
         self.domain_id = domain_id
+        from cyclonedds.core import Policy
+        from cyclonedds.qos import Qos
+
         try:
             # the Domain object must live as long as the participant: it holds the configuration
             self._domain = None if os.environ.get("CYCLONEDDS_URI") else Domain(domain_id, LOOPBACK_CONFIG)
-            self.participant = DomainParticipant(domain_id)
+            self.participant = DomainParticipant(domain_id, qos=Qos(Policy.Userdata(b"enclave=/;")))
         except Exception as exc:        # cyclonedds reports a bad CYCLONEDDS_URI or interface this way
             raise Ros2Error(f"cannot start DDS on domain {domain_id}: {exc}") from exc
         self._writers: dict[str, Any] = {}
+        self.reader_gids: list[bytes] = []              # readers of this node (the command listener's)
+        self._graph = self._discovery_writer()
 
     @staticmethod
-    def qos_for(ros_topic: str) -> Any:
+    def qos_for(ros_topic: str, type_name: str | None = None) -> Any:
+        """ROS 2 default QoS for a topic; with ``type_name``, the endpoint USER_DATA carries the
+        Jazzy type hash (``typehash=RIHS01_...;``) as rmw implementations announce it."""
         from cyclonedds.core import Policy
         from cyclonedds.qos import Qos
         from cyclonedds.util import duration
 
         durable = ros_topic in TRANSIENT_LOCAL_TOPICS
-        return Qos(Policy.Reliability.Reliable(duration(milliseconds=MAX_BLOCKING_MS)),
-                   Policy.Durability.TransientLocal if durable else Policy.Durability.Volatile,
-                   Policy.History.KeepLast(1 if durable else 10),
-                   Policy.DataRepresentation(use_cdrv0_representation=True))
+        policies = [Policy.Reliability.Reliable(duration(milliseconds=MAX_BLOCKING_MS)),
+                    Policy.Durability.TransientLocal if durable else Policy.Durability.Volatile,
+                    Policy.History.KeepLast(1 if durable else 10),
+                    Policy.DataRepresentation(use_cdrv0_representation=True)]
+        if type_name is not None:
+            policies.append(Policy.Userdata(f"typehash={typestore().hash_rihs01(type_name)};".encode()))
+        return Qos(*policies)
+
+    def _discovery_writer(self) -> Any:
+        from cyclonedds.core import Policy
+        from cyclonedds.pub import DataWriter
+        from cyclonedds.qos import Qos
+        from cyclonedds.topic import Topic
+        from cyclonedds.util import duration
+
+        qos = Qos(Policy.Reliability.Reliable(duration(milliseconds=MAX_BLOCKING_MS)), Policy.Durability.TransientLocal,
+                  Policy.History.KeepLast(1), Policy.DataRepresentation(use_cdrv0_representation=True))
+        name = "rmw_dds_common/msg/ParticipantEntitiesInfo"
+        return DataWriter(self.participant, Topic(self.participant, DISCOVERY_TOPIC, idl_type(name), qos=qos), qos=qos)
+
+    def announce(self) -> None:
+        """Publish this node's entities on ``ros_discovery_info`` (what ``ros2 node list`` reads)."""
+        Gid = msg_type("rmw_dds_common/msg/Gid")
+        node = msg_type("rmw_dds_common/msg/NodeEntitiesInfo")(
+            node_namespace=NODE_NAMESPACE, node_name=NODE_NAME,
+            reader_gid_seq=[Gid(data=_gid(g)) for g in self.reader_gids],
+            writer_gid_seq=[Gid(data=_gid(w.guid.bytes)) for w in self._writers.values()])
+        info = msg_type("rmw_dds_common/msg/ParticipantEntitiesInfo")(
+            gid=Gid(data=_gid(self.participant.guid.bytes)), node_entities_info_seq=[node])
+        if _RAW_WRITE is not None:
+            _write_raw(self._graph, serialize(info))
+        else:
+            self._graph.write(to_idl(info))
 
     def writer(self, ros_topic: str, type_name: str) -> Any:
         from cyclonedds.pub import DataWriter
@@ -103,9 +150,10 @@ class DdsPublisher:
 
         w = self._writers.get(ros_topic)
         if w is None:
-            qos = self.qos_for(ros_topic)
+            qos = self.qos_for(ros_topic, type_name)
             topic = Topic(self.participant, dds_topic_name(ros_topic), idl_type(type_name), qos=qos)
             w = self._writers[ros_topic] = DataWriter(self.participant, topic, qos=qos)
+            self.announce()                              # the node's graph entry lists every writer
         return w
 
     def publish(self, ros_topic: str, msg: Any) -> None:
@@ -128,6 +176,7 @@ class DdsPublisher:
 
     def close(self) -> None:
         self._writers.clear()
+        self._graph = None
         self.participant = None
         self._domain = None
 
@@ -150,12 +199,14 @@ class DdsCommandListener:
 
         dp = publisher.participant
         self._readers: list[tuple[Any, str, str, str]] = []          # reader, vehicle, topic kind, topic
-        qos = DdsPublisher.qos_for("/cmd")
         for vehicle in vehicles:
             for topic_kind, type_name in topic_types.items():
                 ros_topic = f"/{vehicle}/{topic_kind}"
+                qos = DdsPublisher.qos_for(ros_topic, type_name)
                 reader = DataReader(dp, Topic(dp, dds_topic_name(ros_topic), idl_type(type_name), qos=qos), qos=qos)
+                publisher.reader_gids.append(reader.guid.bytes)
                 self._readers.append((reader, vehicle, topic_kind, ros_topic))
+        publisher.announce()
         self._on_message = on_message
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="unetyemu-ros2-commands", daemon=True)
@@ -176,4 +227,5 @@ class DdsCommandListener:
         self._readers.clear()
 
 
-__all__ = ["LOOPBACK_CONFIG", "DdsCommandListener", "DdsPublisher", "Ros2Error", "dds_topic_name", "domain_from_env"]
+__all__ = ["DISCOVERY_TOPIC", "LOOPBACK_CONFIG", "NODE_NAME", "DdsCommandListener", "DdsPublisher", "Ros2Error",
+           "dds_topic_name", "domain_from_env"]

@@ -42,6 +42,8 @@ def _field_type(ntype: Any, detail: Any) -> Any:
     from rosbags.typesys.base import Nodetype
 
     if ntype == Nodetype.BASE:
+        if detail[0] == "string" and detail[1]:
+            return t.bounded_str[detail[1]]              # string<N>: same CDR, a different type object
         return _base_types()[detail[0]]
     if ntype == Nodetype.NAME:
         return idl_type(detail)
