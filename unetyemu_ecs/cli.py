@@ -75,6 +75,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     sub.add_parser("plugins", help="list installed components, systems and sensors")
 
+    tele = sub.add_parser("teleop", help="drive a vehicle from the keyboard over ROS 2 (DDS)")
+    tele.add_argument("vehicle", metavar="VEHICLE", help="the vehicle's name (its ROS 2 topics start with /VEHICLE)")
+    tele.add_argument("--layout", choices=["drone", "car"], default="drone",
+                      help="stick layout: drone [throttle, pitch, roll, yaw] or car [throttle, brake, steering]")
+
     plot = sub.add_parser("plot", help="write PNG plots of a run's drone logs")
     plot.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a directory written by `unetyemu run`")
     return parser
@@ -90,6 +95,8 @@ def main(argv: list[str] | None = None) -> int:
             return cmd_validate(args)
         if args.command == "plot":
             return cmd_plot(args)
+        if args.command == "teleop":
+            return cmd_teleop(args)
         return cmd_plugins()
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
@@ -190,6 +197,17 @@ def cmd_validate(args: argparse.Namespace) -> int:
         print(f"{path}: OK ({len(world.vehicles)} vehicles, {len(world.packages)} packages, "
               f"{len(world.layout.objects)} scene objects, {len(world.layout.pads)} pads)")
     return status
+
+
+def cmd_teleop(args: argparse.Namespace) -> int:
+    from .teleop_keyboard import run_teleop
+    from .transport.ros2.dds_backend import Ros2Error
+
+    try:
+        return run_teleop(args.vehicle, args.layout)
+    except Ros2Error as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_FAILURE
 
 
 def cmd_plot(args: argparse.Namespace) -> int:

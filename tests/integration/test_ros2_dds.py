@@ -164,3 +164,36 @@ def test_the_simulator_is_a_ros2_node_whose_endpoints_announce_their_jazzy_type_
         assert writer["gid"][:32] in writer_gids, topic
         assert writer["user_data"] == f"typehash={typestore().hash_rihs01(type_name)};", topic
     assert len(node.reader_gid_seq) == 2 * 4             # mission, target, teleop, cmd_vel of d1 and c1
+
+
+def test_keyboard_teleop_in_a_terminal_drives_the_drone_over_ros2():
+    import os
+    import pty
+    import shutil
+
+    # GIVEN `unetyemu teleop d1` in a pseudo-terminal and the simulation listening
+    master, slave = pty.openpty()
+    exe = shutil.which("unetyemu")
+    cmd = [exe] if exe else [sys.executable, "-m", "unetyemu_ecs.cli"]
+    teleop = subprocess.Popen([*cmd, "teleop", "d1"], stdin=slave, stdout=slave, stderr=slave, close_fds=True)
+    os.close(slave)
+    try:
+        with Simulation(load_world_text(WORLD), ros2="dds") as sim:
+            sim.run(duration=1.5, rate=1.0)
+            # WHEN the user presses w five times (climb at half the climb limit) and waits
+            os.write(master, b"wwwww")
+            sim.run(duration=3.0, rate=1.0)
+            # THEN the drone flies in manual mode on those sticks: it climbs
+            row = sim.row("d1")
+            assert list(np.round(sim.fleet.stick[row], 3)) == [0.5, 0.0, 0.0, 0.0]
+            assert sim.position_enu_m("d1")[2] > 3.0
+            # AND space stops it (hover: sticks back to zero)
+            os.write(master, b" ")
+            sim.run(duration=1.0, rate=1.0)
+            assert list(sim.fleet.stick[row]) == [0.0, 0.0, 0.0, 0.0]
+        os.write(master, b"q")
+        assert teleop.wait(timeout=10) == 0
+    finally:
+        if teleop.poll() is None:
+            teleop.kill()
+        os.close(master)

@@ -314,3 +314,4 @@ def test_the_readme_mission_example_parses():
     spec = parse_mission(block, source="README.md")
     assert [s.type for s in spec.steps] == ["pickup", "takeoff", "cruise", "land", "deliver", "recharge", "idle"]
     assert spec.steps[2].pad == "roof_1" and spec.steps[2].waypoints[0].cruise_speed == 6.0
+
