@@ -88,7 +88,6 @@ class Simulation:
         self.out_dir = Path(out_dir) if out_dir is not None else None
         self._stop_requested = False
         self._entities: dict[str, int] = {}
-        self._mesh = None
         self._log: TrajectoryLogSystem | None = None
         self.inbox = Inbox()
         self.services = SimServices(world.layout, self.inbox, self._entities, [],
@@ -124,9 +123,10 @@ class Simulation:
         quat = np.asarray(quat_xyzw_from_euler_rpy(0.0, 0.0, ent.yaw_rad)).ravel()
         mass = float(ent.params["mass_kg"])
         car_joints = None
+        rgba = tuple(float(c) for c in (PACKAGE_RGBA if ent.kind == "package" else ent.params["rgba"]))
         if ent.kind == "package":
             half = np.asarray(ent.params["size_m"], dtype=float) / 2.0
-            body = create_box_body(self.physics.id, half, mass, ent.pos_enu_m, quat, PACKAGE_RGBA)
+            body = create_box_body(self.physics.id, half, mass, ent.pos_enu_m, quat, rgba)
         elif ent.kind == "car":
             half = np.asarray(ent.params["body_half_extents_m"], dtype=float)
             dyn: CarDynamics = ent.components["car_dynamics"]
@@ -135,18 +135,17 @@ class Simulation:
                 half_extents_m=tuple(half), mass_kg=mass, wheelbase_m=dyn.wheelbase_m, track_m=dyn.track_m,
                 wheel_radius_m=dyn.wheel_radius_m, wheel_width_m=dyn.wheel_width_m, wheel_mass_kg=dyn.wheel_mass_kg,
                 wheel_z_m=dyn.wheel_radius_m - clearance - half[2], max_steer_rad=math.radians(dyn.max_steer_deg),
-                suspension_travel_m=dyn.suspension_travel_m, rgba=tuple(ent.params["rgba"]))
+                suspension_travel_m=dyn.suspension_travel_m, rgba=rgba)
             body, car_joints = create_car_body(self.physics.id, geometry, ent.pos_enu_m, quat, dyn.tyre_friction)
         else:
             half = np.asarray(ent.params["body_half_extents_m"], dtype=float)
-            body = create_box_body(self.physics.id, half, mass, ent.pos_enu_m, quat, tuple(ent.params["rgba"]))
+            body = create_box_body(self.physics.id, half, mass, ent.pos_enu_m, quat, rgba)
         eid = esper.create_entity()
         row = self.fleet.allocate(eid, body)
         esper.add_component(eid, Identity(name=ent.name, kind=ent.kind, preset=ent.preset, index=ent.index))
         esper.add_component(eid, FleetSlot(row=row))
         esper.add_component(eid, RigidBody(body_id=body, mass_kg=mass, half_extents_m=half))
-        rgba = PACKAGE_RGBA if ent.kind == "package" else ent.params["rgba"]
-        esper.add_component(eid, Appearance(rgba=tuple(float(c) for c in rgba)))
+        esper.add_component(eid, Appearance(rgba=rgba))
         if car_joints is not None:
             esper.add_component(eid, CarBody(joints=car_joints))
         for key, comp in ent.components.items():
@@ -174,8 +173,7 @@ class Simulation:
         if self.out_dir is not None:
             self.out_dir.mkdir(parents=True, exist_ok=True)
             spec = world.spec.world
-            origin = GeodeticOrigin(spec.origin.lat_deg, spec.origin.lon_deg, spec.origin.alt_m)
-            self._log = TrajectoryLogSystem(self.out_dir, round(spec.physics_hz / spec.log_hz), origin)
+            self._log = TrajectoryLogSystem(self.out_dir, round(spec.physics_hz / spec.log_hz), self.services.origin)
             systems.append(self._log)
         for s in systems:
             self.ecs.add_system(s)
@@ -451,10 +449,7 @@ class Simulation:
     @property
     def scene_mesh(self):
         """The static scene as one triangle mesh with per-triangle object ids and classes (cached)."""
-        if self._mesh is None:
-            from .scene.mesh import triangulate
-            self._mesh = triangulate(self.definition.layout)
-        return self._mesh
+        return self.services.scene_mesh()
 
     @property
     def log_paths(self) -> dict[str, Path]:

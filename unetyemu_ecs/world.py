@@ -55,10 +55,19 @@ class SimServices:
     entities: dict[str, int]
     events: list[tuple[float, str, str]]
     pending: list[Any] = field(default_factory=list)
-    sensors: SensorOutputs = field(default_factory=lambda: _sensor_outputs())
+    sensors: SensorOutputs = field(default_factory=_sensor_outputs)
     gravity_enu_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.81)
     origin: GeodeticOrigin | None = None
     raycast: Any = None          # the RaycastWorld of LiDARs and cameras, built by the first that needs it
+    _mesh: Any = None
+
+    def scene_mesh(self) -> Any:
+        """The static scene as one triangle mesh (built on first use, then shared: API, LiDAR, cameras)."""
+        if self._mesh is None:
+            from .scene.mesh import triangulate
+
+            self._mesh = triangulate(self.layout)
+        return self._mesh
 
     def note(self, sim_time_s: float, vehicle: str, message: str) -> None:
         """Record a rare event (never called per step in steady state)."""

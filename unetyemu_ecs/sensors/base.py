@@ -44,6 +44,11 @@ class SensorSpec:
     topic: Annotated[str, NonEmpty()] | None = None                  # None: /<vehicle>/<default suffix>
     frame_id: Annotated[str, NonEmpty()] | None = None               # None: <vehicle>/<default link>
 
+    def frame_name(self, vehicle: str, fallback_link: str = "base_link") -> str:
+        """The frame this sensor's messages are stamped with: ``frame_id`` if given, else
+        ``<vehicle>/<OPTICAL or LINK>``, else ``<vehicle>/<fallback_link>`` (sensors without a frame)."""
+        return self.frame_id or f"{vehicle}/{self.OPTICAL or self.LINK or fallback_link}"
+
     def mount_quat_xyzw(self) -> np.ndarray:
         """Rotation of the sensor frame in base_link, xyzw."""
         r, p, y = np.deg2rad(self.mount_rpy_deg)
@@ -90,8 +95,9 @@ class MountedSensor:
 class SensorSystemBase(esper.Processor):
     """Gathering, scheduling and noise streams for a SENSORS-phase system of one sensor kind.
 
-    Subclasses set ``spec_type``, ``key`` (the world-file key), ``topic_suffix``, ``link`` and
-    implement ``measure(ctx, due, time_s)`` for the list of sensors due this step.
+    Subclasses set ``spec_type``, ``key`` (the world-file key), ``topic_suffix``, and ``link`` only
+    when the spec has no frame of its own (``SensorSpec.LINK``), and implement
+    ``measure(ctx, due, time_s)`` for the list of sensors due this step.
     """
 
     spec_type: type = SensorSpec
@@ -108,7 +114,7 @@ class SensorSystemBase(esper.Processor):
         found = []
         for ent, (slot, ident, spec) in esper.get_components(FleetSlot, Identity, self.spec_type):
             topic = spec.topic or f"/{ident.name}/{self.topic_suffix}"
-            frame = spec.frame_id or f"{ident.name}/{self.link}"
+            frame = spec.frame_name(ident.name, self.link)
             old = next((s for s in self.sensors if s.entity == ent), None)
             found.append(MountedSensor(ent, slot.row, ident.name, ident.kind, spec, topic, frame,
                                        old.next_due_s if old else 0.0))
@@ -138,7 +144,7 @@ class SensorSystemBase(esper.Processor):
             return
         for s in due:
             period = 1.0 / s.spec.rate_hz
-            s.next_due_s += period * max(1, int(np.floor((time_s + eps - s.next_due_s) / period)) + 1)
+            s.next_due_s += period * (np.floor((time_s + eps - s.next_due_s) / period) + 1)
         self.measure(ctx, due, time_s)
 
     def measure(self, ctx: StepContext, due: list[MountedSensor], time_s: float) -> None:

@@ -161,7 +161,6 @@ class RgbCameraSystem(_CameraSystem):
     spec_type = RgbCamera
     key = "camera"
     topic_suffix = "camera/image_raw"
-    link = "camera_optical_frame"
 
     def measure(self, ctx: StepContext, due: list[MountedSensor], time_s: float) -> None:
         for s, (hits, sl, dirs_w) in zip(due, self.cast_frames(ctx, due)):
@@ -180,6 +179,7 @@ class RgbCameraSystem(_CameraSystem):
             self.publish(ctx, s, time_s, image(time_s, s.frame_id, spec.width, spec.height, "rgb8", pixels))
             self.publish_info(ctx, s, time_s)
 
+
 class DepthCameraSystem(_CameraSystem):
     """Every depth camera that is due. Phase: SENSORS."""
 
@@ -188,7 +188,6 @@ class DepthCameraSystem(_CameraSystem):
     spec_type = DepthCamera
     key = "depth_camera"
     topic_suffix = "depth/image_raw"
-    link = "depth_optical_frame"
 
     def measure(self, ctx: StepContext, due: list[MountedSensor], time_s: float) -> None:
         for s, (hits, sl, _) in zip(due, self.cast_frames(ctx, due)):

@@ -43,7 +43,6 @@ class GpsSystem(SensorSystemBase):
     spec_type = GpsSensor
     key = "gps"
     topic_suffix = "gps/fix"
-    link = "gps_link"
 
     def __init__(self) -> None:
         super().__init__()

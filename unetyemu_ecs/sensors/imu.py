@@ -52,7 +52,6 @@ class ImuSystem(SensorSystemBase):
     spec_type = ImuSensor
     key = "imu"
     topic_suffix = "imu/data"
-    link = "imu_link"
 
     def __init__(self) -> None:
         super().__init__()

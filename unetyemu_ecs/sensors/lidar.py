@@ -98,7 +98,6 @@ class LidarSystem(RaycastSensorSystem):
     spec_type = LidarSensor
     key = "lidar"
     topic_suffix = "lidar/points"
-    link = "lidar_link"
 
     def __init__(self) -> None:
         super().__init__()

@@ -29,9 +29,7 @@ class RaycastSensorSystem(SensorSystemBase):
     def gather(self, ctx: StepContext) -> None:
         super().gather(ctx)
         if ctx.services.raycast is None:
-            from ..scene.mesh import triangulate
-
-            mesh = triangulate(ctx.services.layout)
+            mesh = ctx.services.scene_mesh()
             ctx.services.raycast = RaycastWorld(mesh.vertices_m, mesh.triangles, mesh.cls)
         self.world = ctx.services.raycast
         found = sorted((slot.row, body.half_extents_m)

@@ -79,16 +79,12 @@ class TransformSystem(esper.Processor):
             for comp in esper.components_for_entity(by_name[name]):
                 if not isinstance(comp, SensorSpec) or not comp.LINK:
                     continue
+                frame = comp.frame_name(name)                  # what its messages are stamped with
+                link = f"{name}/{comp.LINK}" if comp.OPTICAL else frame
+                out.append(_transform(time_s, f"{name}/base_link", link, np.asarray(comp.mount_xyz_m, float),
+                                      comp.mount_quat_xyzw()))
                 if comp.OPTICAL:
-                    link = f"{name}/{comp.LINK}"
-                    optical = comp.frame_id or f"{name}/{comp.OPTICAL}"
-                    out.append(_transform(time_s, f"{name}/base_link", link, np.asarray(comp.mount_xyz_m, float),
-                                          comp.mount_quat_xyzw()))
-                    out.append(_transform(time_s, link, optical, np.zeros(3), q_optical))
-                else:
-                    link = comp.frame_id or f"{name}/{comp.LINK}"
-                    out.append(_transform(time_s, f"{name}/base_link", link, np.asarray(comp.mount_xyz_m, float),
-                                          comp.mount_quat_xyzw()))
+                    out.append(_transform(time_s, link, frame, np.zeros(3), q_optical))
         return out
 
 

@@ -49,11 +49,11 @@ def apply_command(sim: Any, vehicle: str, kind: str, topic_kind: str, msg: Any) 
             if kind == "quadrotor":
                 if len(values) != 4:
                     raise ValueError(f"drone teleop needs [throttle, pitch, roll, yaw] (4 values), got {len(values)}")
-                sim.teleop(vehicle, *_finite(values, "teleop sticks"))
+                sim.teleop(vehicle, *values)                  # the API checks finite and in range
             else:
                 if len(values) != 3:
                     raise ValueError(f"car teleop needs [throttle, brake, steering] (3 values), got {len(values)}")
-                sim.drive(vehicle, *_finite(values, "car teleop"))
+                sim.drive(vehicle, *values)
         elif topic_kind == "cmd_vel":
             if kind != "car":
                 raise ValueError("cmd_vel drives cars; fly a drone with target, mission or teleop")
