@@ -335,14 +335,23 @@ class Simulation:
                              f"got {cmd}")
         self.inbox.put(Drive(name, float(throttle), float(brake), float(steering)))
 
-    def cmd_vel(self, name: str, forward_m_s: float, yaw_rate_rad_s: float) -> None:
-        """Drive car ``name`` at a forward speed [m/s] (negative = reverse) and yaw rate [rad/s], CCW
-        positive (ROS ``cmd_vel`` ``linear.x`` and ``angular.z``); held until the next command."""
-        self._car(name)
-        values = (forward_m_s, yaw_rate_rad_s)
+    def cmd_vel(self, name: str, forward_m_s: float, yaw_rate_rad_s: float, left_m_s: float = 0.0,
+                up_m_s: float = 0.0) -> None:
+        """Body-frame velocity command (ROS ``cmd_vel``), held until the next command.
+
+        ``forward_m_s`` [m/s] (negative = backwards) and ``yaw_rate_rad_s`` [rad/s], CCW positive
+        (``linear.x`` and ``angular.z``). A drone switches to VELOCITY mode (cancelling a running
+        mission) and also flies ``left_m_s`` and ``up_m_s`` (``linear.y``, ``linear.z``; climb and
+        descent and yaw rate clamped to its limits); a car drives at the speed and yaw rate and
+        ignores the sideways and vertical parts.
+        """
+        kind = self.definition_of(name).kind
+        if kind not in ("quadrotor", "car"):
+            raise ValueError(f"cmd_vel({name!r}): {name!r} is a {kind}, not a vehicle")
+        values = (forward_m_s, yaw_rate_rad_s, left_m_s, up_m_s)
         if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
             raise ValueError(f"cmd_vel({name!r}): values must be finite numbers, got {values}")
-        self.inbox.put(CmdVel(name, float(forward_m_s), float(yaw_rate_rad_s)))
+        self.inbox.put(CmdVel(name, float(forward_m_s), float(yaw_rate_rad_s), float(left_m_s), float(up_m_s)))
 
     def drive_route(self, name: str, waypoints: list[tuple[float, float]], speed: float | None = None,
                     loop: bool = False, laps: int = 0) -> None:

@@ -12,7 +12,9 @@ import numpy as np
 import pytest
 
 from unetyemu_ecs import Simulation, load_world_text
+from unetyemu_ecs.components.flight import GuidanceLimits
 from unetyemu_ecs.control.energy import hover_power_w
+from unetyemu_ecs.control.position import GuidanceGains
 from unetyemu_ecs.scene.primitives import SceneClass
 from unetyemu_ecs.systems.flight_state import FlightMode
 
@@ -422,3 +424,57 @@ vehicles:
         assert x_hit == pytest.approx(15.0, abs=0.1)
         # AND the drone did not pass through the wall
         assert sim.position_enu_m("d1")[0] < 15.0
+
+
+def test_cmd_vel_flies_the_body_frame_velocity_and_yaw_rate_and_holds_altitude():
+    with Simulation(load_world_text(flat_world(drone("d1")))) as sim:
+        hover(sim, "d1", 10.0, 8.0)
+        # WHEN cmd_vel asks for 3 m/s forward and 1 m/s left (body frame), no yaw rate, no climb
+        yaw0 = _yaw(sim, "d1")
+        sim.cmd_vel("d1", 3.0, 0.0, left_m_s=1.0)
+        sim.run(duration=6.0)
+        # THEN the drone is in VELOCITY mode, flying that velocity turned into ENU by its heading
+        assert sim.fleet.flight_mode[sim.row("d1")] == FlightMode.VELOCITY
+        expect = np.array([3 * math.cos(yaw0) - math.sin(yaw0), 3 * math.sin(yaw0) + math.cos(yaw0)])
+        v = sim.velocity_enu_m_s("d1")
+        assert np.linalg.norm(v[:2] - expect) < 0.15 and abs(v[2]) < 0.1
+        assert abs(sim.position_enu_m("d1")[2] - 10.0) < 0.3
+        # WHEN it adds a yaw rate of 0.5 rad/s and a climb of 1 m/s
+        sim.cmd_vel("d1", 3.0, 0.5, up_m_s=1.0)
+        sim.run(duration=2.0)
+        yaw_a = _yaw(sim, "d1")
+        z_a = sim.position_enu_m("d1")[2]
+        sim.run(duration=2.0)
+        # THEN the heading turns at 0.5 rad/s, it climbs at 1 m/s and its velocity turns with the nose,
+        # trailing it by about atan(yaw rate / velocity-loop gain) (a first-order loop chasing a turning setpoint)
+        yaw_b = _yaw(sim, "d1")
+        assert math.remainder(yaw_b - yaw_a, math.tau) == pytest.approx(1.0, abs=0.05)
+        assert sim.position_enu_m("d1")[2] - z_a == pytest.approx(2.0, abs=0.1)
+        v = sim.velocity_enu_m_s("d1")
+        lag = math.remainder(yaw_b - math.atan2(v[1], v[0]), math.tau)
+        assert lag == pytest.approx(math.atan(0.5 / GuidanceGains().gain_vel_p), abs=0.05)
+        assert np.linalg.norm(v[:2]) == pytest.approx(3.0, abs=0.15)
+        # WHEN cmd_vel is all zero THEN it stops (the velocity loop's integral of the drag it was
+        # compensating decays over a few seconds) and hovers
+        sim.cmd_vel("d1", 0.0, 0.0)
+        sim.run(duration=8.0)
+        assert np.linalg.norm(sim.velocity_enu_m_s("d1")) < 0.1
+
+
+def test_cmd_vel_climb_and_yaw_rate_are_clamped_to_the_drone_limits():
+    with Simulation(load_world_text(flat_world(drone("d1")))) as sim:
+        hover(sim, "d1", 5.0, 6.0)
+        sim.cmd_vel("d1", 0.0, 50.0, up_m_s=40.0)
+        sim.run(duration=3.0)
+        f, row = sim.fleet, sim.row("d1")
+        lim = sim.component("d1", GuidanceLimits)
+        assert f.vz_sp_m_s[row] == pytest.approx(lim.lim_climb_m_s)
+        assert f.yaw_rate_sp_rad_s[row] == pytest.approx(math.radians(lim.lim_yaw_rate_deg_s))
+        with pytest.raises(ValueError, match="finite"):
+            sim.cmd_vel("d1", math.nan, 0.0)
+
+
+def _yaw(sim: Simulation, name: str) -> float:
+    """The drone's ENU heading [rad] (its body x axis projected on the ground)."""
+    x, y, z, w = sim.attitude_enu_flu_xyzw(name)
+    return math.atan2(2 * (x * y + w * z), 1 - 2 * (y * y + z * z))

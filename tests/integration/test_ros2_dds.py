@@ -106,11 +106,11 @@ SENDER = LISTENER.parent / "send.py"
 COMMANDS = [
     ["/d1/target", "std_msgs/msg/Float32MultiArray", {"data": [5.0, 4.0, 6.0, 90.0, 3.0]}],
     ["/c1/cmd_vel", "geometry_msgs/msg/Twist", {"linear": {"x": 3.0}, "angular": {"z": 0.0}}],
-    # garbage: wrong length, NaN, bad JSON, a drone asked for cmd_vel, a car beyond its top speed
+    # garbage: wrong length, NaN, bad JSON, a NaN in a Twist, a car beyond its top speed
     ["/d1/teleop", "std_msgs/msg/Float32MultiArray", {"data": [0.1, 0.2]}],
     ["/d1/target", "std_msgs/msg/Float32MultiArray", {"data": [1.0, "NaN", 3.0, 0.0, 2.0]}],
     ["/d1/mission", "std_msgs/msg/String", {"data": "{not json"}],
-    ["/d1/cmd_vel", "geometry_msgs/msg/Twist", {"linear": {"x": 1.0}}],
+    ["/d1/cmd_vel", "geometry_msgs/msg/Twist", {"linear": {"x": 1.0, "y": "NaN"}}],
     ["/c1/cmd_vel", "geometry_msgs/msg/Twist", {"linear": {"x": 90.0}}],
     # a good mission last: fly to (-5, 5) at 4 m and land there
     ["/d1/mission", "std_msgs/msg/String", {"data": json.dumps({"name": "hop", "steps": [
@@ -142,7 +142,8 @@ def test_commands_from_a_ros2_peer_drive_the_vehicles_and_garbage_is_rejected_wi
     assert status is not None and status["mission"] == "hop" and status["state"] == "completed", events
     assert np.linalg.norm(final[:2] - [-5.0, 5.0]) < 1.0 and final[2] < 0.5
     # AND each piece of garbage was rejected with its reason, in the event log and on /rosout
-    reasons = ["4 values", "finite", "mission rejected", "cmd_vel drives cars", "top speed"]
+    reasons = ["4 values", "target values must be finite", "mission rejected", "cmd_vel linear must be finite",
+               "top speed"]
     for reason in reasons:
         assert any(reason in e for e in events), (reason, events)
         assert any(reason in line for line in got["rosout"]), (reason, got["rosout"])

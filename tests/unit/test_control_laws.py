@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -10,7 +11,7 @@ from numpy.testing import assert_allclose
 
 from unetyemu_ecs.control.attitude import (StabilizerGains, attitude_to_torque_cmd, manual_to_setpoints,
                                            vertical_speed_to_thrust_frac)
-from unetyemu_ecs.control.position import (GuidanceGains, accel_to_tilt_sp, heading_to_yaw_rate_sp,
+from unetyemu_ecs.control.position import (GuidanceGains, accel_to_tilt_sp, body_velocity_to_enu_sp, heading_to_yaw_rate_sp,
                                            position_to_velocity_sp, velocity_to_accel_sp)
 
 G = 9.81
@@ -160,3 +161,15 @@ def test_a_fleet_with_per_vehicle_gains_computes_what_each_vehicle_alone_compute
     # THEN every output row equals the lone vehicle's output
     for k, out in enumerate(fleet):
         assert_allclose(out, np.concatenate([a[k] for a in alone]), rtol=1e-12, atol=1e-12)
+
+
+def test_body_velocity_command_turns_with_the_heading_and_clamps_the_vertical_part():
+    cmd = np.array([[2.0, 1.0, 5.0], [2.0, 1.0, -9.0], [0.0, 0.0, 0.5]])
+    yaw = np.array([0.0, math.pi / 2, 1.0])
+    out = body_velocity_to_enu_sp(cmd, yaw, np.array([3.0, 3.0, 3.0]), np.array([2.0, 2.0, 2.0]))
+    # facing east: forward is +x (east), left is +y (north); facing north: forward is +y, left is -x
+    np.testing.assert_allclose(out[0], [2.0, 1.0, 3.0], atol=1e-12)
+    np.testing.assert_allclose(out[1], [-1.0, 2.0, -2.0], atol=1e-12)
+    np.testing.assert_allclose(out[2], [0.0, 0.0, 0.5], atol=1e-12)
+    # horizontal speed is kept whatever the heading
+    assert np.linalg.norm(out[:2, :2], axis=1) == pytest.approx([math.sqrt(5)] * 2)

@@ -107,3 +107,16 @@ def heading_to_yaw_rate_sp(yaw_sp_rad: np.ndarray, yaw_rad: np.ndarray, lim_yaw_
     """Yaw-rate setpoint (N,) [rad/s] turning the shortest way to ``yaw_sp`` (NaN = hold: 0)."""
     err = wrap_angle_rad(np.nan_to_num(yaw_sp_rad - yaw_rad, nan=0.0))
     return np.clip(gains.gain_yaw_p * err, -lim_yaw_rate_rad_s, lim_yaw_rate_rad_s)
+
+
+def body_velocity_to_enu_sp(vel_flu_m_s: np.ndarray, yaw_rad: np.ndarray, lim_climb_m_s: np.ndarray,
+                            lim_descent_m_s: np.ndarray) -> np.ndarray:
+    """Velocity setpoint (N, 3) [m/s], ENU, of a body-frame command (N, 3) [forward, left, up] [m/s].
+
+    ROS ``cmd_vel`` semantics for a multirotor: the horizontal part turns with the current heading
+    ``yaw_rad`` (N,), so a constant command with a yaw rate flies a circle; the vertical part is
+    clamped to the climb/descent limits. The horizontal speed is left to the tilt limit downstream.
+    """
+    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
+    fwd, left, up = vel_flu_m_s[:, 0], vel_flu_m_s[:, 1], vel_flu_m_s[:, 2]
+    return np.stack([c * fwd - s * left, s * fwd + c * left, np.clip(up, -lim_descent_m_s, lim_climb_m_s)], axis=1)

@@ -19,7 +19,7 @@ from ..components.body import FleetSlot, Identity
 from ..components.flight import GuidanceLimits, TeleopScript
 from ..components.mission import MissionRuntime
 from ..phases import Phase
-from ..transport.bus import Arm, LoadMission, SetTarget, Teleop
+from ..transport.bus import Arm, CmdVel, LoadMission, SetTarget, Teleop
 from ..world import StepContext
 from .flight_state import FlightMode, Route, declare_flight_arrays, set_route
 
@@ -127,6 +127,17 @@ class FlightCommandSystem(esper.Processor):
             if f.flight_mode[row] != FlightMode.MANUAL:
                 _cancel_mission(ctx, ent, "teleop")
                 f.flight_mode[row] = FlightMode.MANUAL
+            return ""
+        if isinstance(msg, CmdVel):
+            cmd = (msg.forward_m_s, msg.left_m_s, msg.up_m_s, msg.yaw_rate_rad_s)
+            if not all(math.isfinite(v) for v in cmd):
+                return "cmd_vel values must be finite numbers"
+            f.vel_cmd_flu_m_s[row] = cmd[:3]
+            f.yaw_rate_cmd_rad_s[row] = msg.yaw_rate_rad_s
+            if f.flight_mode[row] != FlightMode.VELOCITY:
+                _cancel_mission(ctx, ent, "cmd_vel")
+                f.flight_mode[row] = FlightMode.VELOCITY
+                f.vel_int_m_s[row] = 0.0
             return ""
         if isinstance(msg, LoadMission):
             if esper.has_component(ent, MissionRuntime):

@@ -21,6 +21,7 @@ class FlightMode(IntEnum):
     DISARMED = 0   # motors off
     MANUAL = 1     # teleop sticks -> stabilizer setpoints
     AUTO = 2       # route / target -> guidance -> stabilizer setpoints
+    VELOCITY = 3   # body-frame velocity + yaw rate (ROS cmd_vel) -> guidance velocity loop
 
 
 class PayloadRequest(IntEnum):
@@ -73,6 +74,8 @@ FLIGHT_ARRAYS: dict[str, tuple[tuple[int, ...], type, float]] = {
     "cross_track_m": ((), np.float64, 0.0),
     "pos_sp_enu_m": ((3,), np.float64, 0.0),          # virtual target of the position loop
     "vel_sp_enu_m_s": ((3,), np.float64, 0.0),
+    "vel_cmd_flu_m_s": ((3,), np.float64, 0.0),       # VELOCITY mode: [forward, left, up], body frame
+    "yaw_rate_cmd_rad_s": ((), np.float64, 0.0),      # VELOCITY mode: CCW positive
     "vel_int_m_s": ((2,), np.float64, 0.0),           # horizontal velocity-loop integral
     "vz_sp_m_s": ((), np.float64, 0.0),
     "vz_int_m_s": ((), np.float64, 0.0),              # vertical-speed-loop integral

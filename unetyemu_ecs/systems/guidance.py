@@ -11,8 +11,8 @@ import esper
 import numpy as np
 
 from ..components.flight import GuidanceLimits
-from ..control.position import (GuidanceGains, accel_to_tilt_sp, heading_to_yaw_rate_sp, position_to_velocity_sp,
-                                velocity_to_accel_sp)
+from ..control.position import (GuidanceGains, accel_to_tilt_sp, body_velocity_to_enu_sp, heading_to_yaw_rate_sp,
+                                position_to_velocity_sp, velocity_to_accel_sp)
 from ..control.pursuit import pure_pursuit
 from ..frames import yaw_rad_from_quat_xyzw
 from ..phases import Phase
@@ -22,11 +22,13 @@ from .rows import gather_rows, stack_params, take_params
 
 
 class GuidanceSystem(esper.Processor):
-    """Follow each AUTO drone's route with pure pursuit and the position cascade.
+    """Follow each AUTO drone's route with pure pursuit and the position cascade; fly each VELOCITY
+    drone at its commanded body velocity and yaw rate.
 
-    Phase: GUIDANCE. Reads: flight_mode, route/route_stamp, pose, velocity.
+    Phase: GUIDANCE. Reads: flight_mode, route/route_stamp, vel_cmd_flu_m_s/yaw_rate_cmd_rad_s, pose,
+    velocity.
     Writes: route_segment, arrived, dist_to_final_m, cross_track_m, pos_sp_enu_m, vel_sp_enu_m_s,
-    vel_int_m_s, vz_sp_m_s, roll_sp_rad, pitch_sp_rad, yaw_rate_sp_rad_s (AUTO rows).
+    vel_int_m_s, vz_sp_m_s, roll_sp_rad, pitch_sp_rad, yaw_rate_sp_rad_s (AUTO and VELOCITY rows).
     """
 
     phase = Phase.GUIDANCE
@@ -92,11 +94,18 @@ class GuidanceSystem(esper.Processor):
         changed = np.flatnonzero(f.route_stamp[rows] != self._stamps)
         if changed.size:
             self._load_routes(f, changed)
-        auto = (f.flight_mode[rows] == FlightMode.AUTO) & np.array([f.route[r] is not None for r in rows.tolist()])
-        if not auto.any():
-            return
-        k = np.flatnonzero(auto)
-        r = rows[k]
+        mode = f.flight_mode[rows]
+        auto = (mode == FlightMode.AUTO) & np.array([f.route[r] is not None for r in rows.tolist()])
+        if auto.any():
+            self._follow_routes(ctx, np.flatnonzero(auto))
+        velocity = mode == FlightMode.VELOCITY
+        if velocity.any():
+            self._track_velocity(ctx, np.flatnonzero(velocity))
+
+    def _follow_routes(self, ctx: StepContext, k: np.ndarray) -> None:
+        """AUTO rows (local indices ``k``): pure pursuit on the route, then the position cascade."""
+        f = ctx.fleet
+        r = self._rows[k]
         pos = f.pos_enu_m[r]
         res = pure_pursuit(pos, self._route[k], self._n_points[k], f.route_segment[r], self._speeds[k],
                            self._lead[k], self._zone[k])
@@ -110,13 +119,29 @@ class GuidanceSystem(esper.Processor):
         vel_sp = position_to_velocity_sp(res.target_enu_m, pos, res.dist_to_go_m, res.speed_lims_m_s[:, 0],
                                          np.minimum(res.speed_lims_m_s[:, 1], self._lim_climb[k]),
                                          np.minimum(res.speed_lims_m_s[:, 2], self._lim_descent[k]), gains)
+        yaw = yaw_rad_from_quat_xyzw(f.quat_enu_flu_xyzw[r])
+        self._velocity_loop(ctx, k, vel_sp, yaw, gains)
+        f.yaw_rate_sp_rad_s[r] = heading_to_yaw_rate_sp(self._yaw_sp[k], yaw, self._lim_yaw_rate[k], gains)
+
+    def _track_velocity(self, ctx: StepContext, k: np.ndarray) -> None:
+        """VELOCITY rows (local indices ``k``): the commanded body velocity and yaw rate (ROS cmd_vel)."""
+        f = ctx.fleet
+        r = self._rows[k]
+        yaw = yaw_rad_from_quat_xyzw(f.quat_enu_flu_xyzw[r])
+        vel_sp = body_velocity_to_enu_sp(f.vel_cmd_flu_m_s[r], yaw, self._lim_climb[k], self._lim_descent[k])
+        self._velocity_loop(ctx, k, vel_sp, yaw, take_params(self._gains, k))
+        f.yaw_rate_sp_rad_s[r] = np.clip(f.yaw_rate_cmd_rad_s[r], -self._lim_yaw_rate[k], self._lim_yaw_rate[k])
+
+    def _velocity_loop(self, ctx: StepContext, k: np.ndarray, vel_sp: np.ndarray, yaw: np.ndarray,
+                       gains: GuidanceGains) -> None:
+        """Velocity setpoint (ENU) -> tilt and vertical-speed setpoints for the rows ``k``."""
+        f = ctx.fleet
+        r = self._rows[k]
         f.vel_sp_enu_m_s[r] = vel_sp
         acc_h, vel_int = velocity_to_accel_sp(vel_sp, f.vel_enu_m_s[r], f.vel_int_m_s[r], ctx.dt_s,
                                               self._lim_tilt[k], gains)
         f.vel_int_m_s[r] = vel_int
-        yaw = yaw_rad_from_quat_xyzw(f.quat_enu_flu_xyzw[r])
         roll_sp, pitch_sp = accel_to_tilt_sp(acc_h, yaw, self._lim_tilt[k])
         f.roll_sp_rad[r] = roll_sp
         f.pitch_sp_rad[r] = pitch_sp
         f.vz_sp_m_s[r] = vel_sp[:, 2]
-        f.yaw_rate_sp_rad_s[r] = heading_to_yaw_rate_sp(self._yaw_sp[k], yaw, self._lim_yaw_rate[k], gains)

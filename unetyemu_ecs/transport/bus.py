@@ -65,11 +65,15 @@ class Drive:
 
 @dataclass(frozen=True, slots=True)
 class CmdVel:
-    """Car velocity command: forward speed [m/s] (negative = reverse) and yaw rate [rad/s] (CCW)."""
+    """Body-frame velocity command (ROS ``cmd_vel``): forward speed [m/s] (negative = reverse) and
+    yaw rate [rad/s] (CCW); a drone also takes ``left_m_s`` and ``up_m_s`` (VELOCITY mode), a car
+    ignores them."""
 
     vehicle: str
     forward_m_s: float
     yaw_rate_rad_s: float
+    left_m_s: float = 0.0
+    up_m_s: float = 0.0
     kind: str = "cmd_vel"
 
 

@@ -2,10 +2,10 @@
 
 ``/<v>/mission`` (std_msgs/String, mission JSON), ``/<v>/target`` (std_msgs/Float32MultiArray
 ``[x, y, z, yaw_deg, speed]``), ``/<v>/teleop`` (Float32MultiArray: drone ``[throttle, pitch,
-roll, yaw]``, car ``[throttle, brake, steering]``), ``/<v>/cmd_vel`` (geometry_msgs/Twist; cars:
-``linear.x``, ``angular.z``). Each message becomes one call of the simulation's command API, which
+roll, yaw]``, car ``[throttle, brake, steering]``), ``/<v>/cmd_vel`` (geometry_msgs/Twist, body frame: drones
+``linear.x/y/z`` and ``angular.z``, cars ``linear.x`` and ``angular.z``). Each message becomes one call of the simulation's command API, which
 validates it and queues it for the loop (thread-safe); anything wrong (bad JSON, wrong array
-length, NaN/inf, out of range, a drone sent cmd_vel) raises ``ValueError`` with the reason.
+length, NaN/inf, out of range) raises ``ValueError`` with the reason.
 """
 
 from __future__ import annotations
@@ -55,11 +55,12 @@ def apply_command(sim: Any, vehicle: str, kind: str, topic_kind: str, msg: Any) 
                     raise ValueError(f"car teleop needs [throttle, brake, steering] (3 values), got {len(values)}")
                 sim.drive(vehicle, *values)
         elif topic_kind == "cmd_vel":
-            if kind != "car":
-                raise ValueError("cmd_vel drives cars; fly a drone with target, mission or teleop")
             lin = _finite([msg.linear.x, msg.linear.y, msg.linear.z], "cmd_vel linear")
             ang = _finite([msg.angular.x, msg.angular.y, msg.angular.z], "cmd_vel angular")
-            sim.cmd_vel(vehicle, lin[0], ang[2])
+            if kind == "quadrotor":
+                sim.cmd_vel(vehicle, lin[0], ang[2], left_m_s=lin[1], up_m_s=lin[2])
+            else:
+                sim.cmd_vel(vehicle, lin[0], ang[2])
         else:
             raise ValueError(f"unknown command topic {topic_kind!r}")
     except ConfigError as exc:
