@@ -32,12 +32,12 @@ from .systems.impacts import ImpactMonitorSystem
 from .systems.outputs import TrajectoryLogSystem
 from .systems.physics import PhysicsStepSystem
 from .systems.state import StateReadbackSystem
+from .transport.ros2.bridge import resolve_backend
 from .mission import MissionSpec, mission_reference_issues, parse_mission
 from .transport.bus import Arm, CmdVel, Drive, DriveRoute, Inbox, LoadMission, SetTarget, Teleop
 from .world import EcsWorld, SimServices, StepContext
 
 PACKAGE_RGBA = (0.80, 0.60, 0.30, 1.0)
-ROS2_BACKENDS = ("off", "dds")      # the rclpy backend is not built yet
 
 
 @dataclass(frozen=True)
@@ -67,19 +67,19 @@ class Simulation:
     world : a validated :class:`WorldDefinition` (see :func:`load_world`)
     gui : open the PyBullet GUI instead of running headless
     out_dir : where to write logs; ``None`` writes nothing
-    ros2 : ``"dds"`` publishes every sensor message, TF and ``/clock`` as ROS 2 topics over DDS
-        (no ROS install needed); ``"off"`` (default) publishes nothing
+    ros2 : ``"off"`` (default): no ROS 2; ``"dds"``: the simulator is a ROS 2 node over its own DDS
+        participant (no ROS install needed); ``"rclpy"``: a node of the sourced ROS 2; ``"auto"``:
+        rclpy when it imports, else dds. It publishes every sensor message, TF, ``/clock`` and
+        mission status and listens to each vehicle's command topics (DESIGN.md §6).
     """
 
     def __init__(self, world: WorldDefinition, *, gui: bool = False, out_dir: str | Path | None = None,
                  ros2: str = "off") -> None:
-        if ros2 not in ROS2_BACKENDS:
-            raise ValueError(f"ros2 must be one of {', '.join(ROS2_BACKENDS)}, got {ros2!r}")
         spec = world.spec.world
         self.definition = world
         self.ros2 = ros2
-        self._ros2_backend = None
-        self._ros2_listener = None
+        self.ros2_backend = resolve_backend(ros2)        # "off", "rclpy" or "dds"
+        self._ros2_bridge = None
         self.dt_s = 1.0 / spec.physics_hz
         self.seed = spec.seed
         self.rng = np.random.default_rng(spec.seed)
@@ -168,8 +168,8 @@ class Simulation:
         systems += [cls() for cls in classes]
         for key, cfg in world.systems.items():
             systems.append(world.registry.system_entry(key).spec.system(cfg))
-        if self.ros2 == "dds":
-            systems.append(self._start_ros2_dds(world))
+        if self.ros2_backend != "off":
+            systems.append(self._start_ros2(world))
         if self.out_dir is not None:
             self.out_dir.mkdir(parents=True, exist_ok=True)
             spec = world.spec.world
@@ -178,17 +178,17 @@ class Simulation:
         for s in systems:
             self.ecs.add_system(s)
 
-    def _start_ros2_dds(self, world: WorldDefinition) -> Any:
-        """Open the DDS participant, start listening to the command topics; return the publisher system."""
+    def _start_ros2(self, world: WorldDefinition) -> Any:
+        """Open the ROS 2 backend, listen to the command topics; return the publisher system."""
         import queue
 
         from .systems.ros2_out import Ros2PublisherSystem
-        from .transport.ros2.dds_backend import DdsCommandListener, DdsPublisher
+        from .transport.ros2.bridge import open_bridge
         from .transport.ros2.inbound import COMMAND_TOPICS, apply_command
 
-        self._ros2_backend = DdsPublisher()
         notices: queue.SimpleQueue = queue.SimpleQueue()
-        kinds = {e.name: e.kind for e in world.entities if e.kind != "package"}
+        kinds = {e.name: e.kind for e in world.entities if e.kind != "package" and e.ros2}
+        hidden = frozenset(e.name for e in world.entities if e.kind != "package" and not e.ros2)
 
         def on_message(vehicle: str, topic_kind: str, topic: str, sample: Any) -> None:   # transport thread
             try:
@@ -196,8 +196,13 @@ class Simulation:
             except ValueError as exc:
                 notices.put((vehicle, topic, str(exc)))
 
-        self._ros2_listener = DdsCommandListener(self._ros2_backend, kinds, COMMAND_TOPICS, on_message)
-        return Ros2PublisherSystem(self._ros2_backend, notices)
+        self._ros2_bridge = open_bridge(self.ros2_backend, kinds, COMMAND_TOPICS, on_message)
+        return Ros2PublisherSystem(self._ros2_bridge, notices, hidden)
+
+    @property
+    def ros2_topics(self) -> list[str]:
+        """The ROS 2 topics this simulation has published so far (empty with ROS 2 off)."""
+        return self._ros2_bridge.topics if self._ros2_bridge is not None else []
 
     # -- clock -------------------------------------------------------------------------------
     @property
@@ -470,12 +475,9 @@ class Simulation:
         """Flush and close logs, disconnect PyBullet and delete the esper world; safe to call twice."""
         if self._log is not None:
             self._log.close()
-        if self._ros2_listener is not None:
-            self._ros2_listener.close()
-            self._ros2_listener = None
-        if self._ros2_backend is not None:
-            self._ros2_backend.close()
-            self._ros2_backend = None
+        if self._ros2_bridge is not None:
+            self._ros2_bridge.close()
+            self._ros2_bridge = None
         if self.physics is not None:
             self.physics.close()
         self.ecs.close()

@@ -66,9 +66,10 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", type=Path, default=None, metavar="DIR",
                      help="output directory (default: runs/<world>-<date>-<time>)")
     run.add_argument("--quiet", action="store_true", help="no progress display")
-    run.add_argument("--ros2", choices=["off", "dds"], default="off",
-                     help="publish sensors, TF and /clock as ROS 2 topics over DDS (default off; with dds the "
-                          "default pace is real time)")
+    run.add_argument("--ros2", choices=["off", "auto", "rclpy", "dds"], default="off",
+                     help="be a ROS 2 node: publish sensors, TF, /clock and mission status, take commands "
+                          "(dds: built in, no ROS needed; rclpy: the sourced ROS 2; auto: rclpy if it imports, "
+                          "else dds; default off). With ROS 2 on, the default pace is real time")
 
     val = sub.add_parser("validate", help="check world files without running them")
     val.add_argument("worlds", type=Path, nargs="+", metavar="WORLD")

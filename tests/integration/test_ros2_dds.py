@@ -198,3 +198,64 @@ def test_keyboard_teleop_in_a_terminal_drives_the_drone_over_ros2():
         if teleop.poll() is None:
             teleop.kill()
         os.close(master)
+
+
+SWITCHES_WORLD = """
+world: {name: ros2_switches, physics_hz: 240, seed: 9}
+scene: {generator: none, ground_size_m: 200}
+vehicles:
+  - name: d1
+    type: quadrotor
+    pose: {position_m: [0.0, 0.0, 0.3]}
+    components: {lidar: {ros2: false}, imu: {topic: /d1/imu_hi_rate, rate_hz: 200}, battery: {}}
+  - name: c1
+    type: car
+    pose: {position_m: [-10.0, 0.0, 0.9]}
+    ros2: false
+    components: {gps: {}}
+"""
+
+
+def test_world_file_switches_take_a_vehicle_or_a_sensor_off_ros2_and_rename_a_topic():
+    from cyclonedds.domain import DomainParticipant
+    from cyclonedds.pub import DataWriter
+    from cyclonedds.topic import Topic
+
+    from unetyemu_ecs.transport.ros2.dds_backend import DdsPublisher, dds_topic_name
+    from unetyemu_ecs.transport.ros2.dds_types import idl_type
+
+    with Simulation(load_world_text(SWITCHES_WORLD), ros2="dds") as sim:
+        sim.run(duration=1.0)
+        # THEN the renamed IMU topic and the battery are published; the LiDAR (ros2: false) and
+        # everything of c1 (vehicle ros2: false) are not, although they measure for the Python API
+        topics = sim.ros2_topics
+        assert {"/d1/imu_hi_rate", "/d1/battery", "/clock", "/tf"} <= set(topics)
+        assert "/d1/imu/data" not in topics and "/d1/lidar/points" not in topics
+        assert not [t for t in topics if t.startswith("/c1/")]
+        assert sim.sensor("d1", "lidar") is not None and sim.sensor("c1", "gps") is not None
+        # AND from the outside: a Twist writer finds a reader on /d1/cmd_vel and none on /c1/cmd_vel
+        dp = DomainParticipant(0)
+        twist = idl_type("geometry_msgs/msg/Twist")
+        writers = {v: DataWriter(dp, Topic(dp, dds_topic_name(f"/{v}/cmd_vel"), twist,
+                                           qos=DdsPublisher.qos_for("/x")), qos=DdsPublisher.qos_for("/x"))
+                   for v in ("d1", "c1")}
+        deadline = time.monotonic() + 5.0
+        while not writers["d1"].get_matched_subscriptions() and time.monotonic() < deadline:
+            sim.run(duration=0.05)
+        time.sleep(0.5)
+        assert len(writers["d1"].get_matched_subscriptions()) == 1
+        assert writers["c1"].get_matched_subscriptions() == []
+
+
+def test_ros2_backend_choice_auto_falls_back_to_dds_and_rclpy_without_ros_says_what_to_do(monkeypatch):
+    from unetyemu_ecs.transport.ros2 import bridge, rclpy_backend
+    from unetyemu_ecs.transport.ros2.dds_backend import Ros2Error
+
+    if rclpy_backend.rclpy_available():
+        pytest.skip("rclpy imports here: auto picks it (tested in test_ros2_rclpy.py)")
+    assert bridge.resolve_backend("auto") == "dds"
+    assert bridge.resolve_backend("off") == "off"
+    with pytest.raises(ValueError, match="ros2 must be one of off, auto, rclpy, dds"):
+        bridge.resolve_backend("zenoh")
+    with pytest.raises(Ros2Error, match="rclpy does not import.*source /opt/ros/jazzy/setup.bash.*--ros2 dds"):
+        Simulation(load_world_text(SWITCHES_WORLD), ros2="rclpy")

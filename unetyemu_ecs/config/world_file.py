@@ -22,6 +22,7 @@ import numpy as np
 
 from ..plugins import GROUP_SENSORS, Registry
 from ..scene.config import SceneConfig
+from ..sensors.base import SensorSpec
 from ..scene.layout import build_layout
 from ..scene.primitives import SceneLayout
 from ..vehicles.presets import component_tables, preset, presets_for
@@ -97,6 +98,9 @@ class VehicleSpec:
     # sensors attached with their defaults: "all" (every installed sensor that fits the vehicle) or
     # a list of sensor keys; a sensor also under `components` keeps the parameters given there
     sensors: Literal["all"] | list[Annotated[str, NonEmpty()]] = field(default_factory=list)
+    # with the ROS 2 bridge on: publish this vehicle's sensors and mission status and listen to its
+    # command topics (False: none of them; its frames stay in /tf, which describes the whole world)
+    ros2: bool = True
 
     def __post_init__(self) -> None:
         known = presets_for(self.type)
@@ -128,6 +132,7 @@ class EntityDefinition:
     yaw_rad: float                     # ENU
     params: dict[str, Any]             # preset parameters (vehicles) or mass/size (packages)
     components: dict[str, Any]         # world-file key -> component instance
+    ros2: bool = True                  # on the ROS 2 bridge (VehicleSpec.ros2); packages: unused
 
 
 @dataclass(frozen=True)
@@ -316,4 +321,7 @@ def _resolve_entity(group: str, i: int, item: VehicleSpec | PackageSpec, layout:
         return None
     index = counts.get(kind, 0)
     counts[kind] = index + 1
-    return EntityDefinition(item.name, kind, preset_name, index, pos, float(yaw_rad), params, components)
+    on_ros2 = getattr(item, "ros2", True)
+    if not on_ros2:                                  # a vehicle off ROS 2 takes its sensors with it
+        components = {k: replace(c, ros2=False) if isinstance(c, SensorSpec) else c for k, c in components.items()}
+    return EntityDefinition(item.name, kind, preset_name, index, pos, float(yaw_rad), params, components, on_ros2)

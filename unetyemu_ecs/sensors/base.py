@@ -43,6 +43,7 @@ class SensorSpec:
     mount_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)      # sensor axes relative to base_link
     topic: Annotated[str, NonEmpty()] | None = None                  # None: /<vehicle>/<default suffix>
     frame_id: Annotated[str, NonEmpty()] | None = None               # None: <vehicle>/<default link>
+    ros2: bool = True          # publish on ROS 2 when the bridge is on (False: Python API and logs only)
 
     def frame_name(self, vehicle: str, fallback_link: str = "base_link") -> str:
         """The frame this sensor's messages are stamped with: ``frame_id`` if given, else
@@ -57,13 +58,15 @@ class SensorSpec:
 
 @dataclass(frozen=True)
 class SensorSample:
-    """One measurement: when (sim time [s]), which vehicle and sensor key, the topic, the message."""
+    """One measurement: when (sim time [s]), which vehicle and sensor key, the topic, the message,
+    and whether the ROS 2 bridge publishes it."""
 
     time_s: float
     vehicle: str
     sensor: str
     topic: str
     msg: Any
+    ros2: bool = True
 
 
 @dataclass
@@ -151,7 +154,7 @@ class SensorSystemBase(esper.Processor):
         raise NotImplementedError
 
     def publish(self, ctx: StepContext, sensor: MountedSensor, time_s: float, msg: Any) -> None:
-        ctx.services.sensors.put(SensorSample(time_s, sensor.vehicle, self.key, sensor.topic, msg))
+        ctx.services.sensors.put(SensorSample(time_s, sensor.vehicle, self.key, sensor.topic, msg, sensor.spec.ros2))
 
 
 __all__ = ["MountedSensor", "SensorOutputs", "SensorSample", "SensorSpec", "SensorSystemBase"]

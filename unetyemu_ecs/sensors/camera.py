@@ -143,7 +143,7 @@ class _CameraSystem(RaycastSensorSystem):
         """The CameraInfo of a frame, on ``<image topic's namespace>/camera_info`` (image_transport)."""
         topic = s.topic.rsplit("/", 1)[0] + "/camera_info"
         msg = camera_info(time_s, s.frame_id, s.spec.width, s.spec.height, s.spec.hfov_deg)
-        ctx.services.sensors.put(SensorSample(time_s, s.vehicle, f"{self.key}_info", topic, msg))
+        ctx.services.sensors.put(SensorSample(time_s, s.vehicle, f"{self.key}_info", topic, msg, s.spec.ros2))
 
 
 _CLASS_RGB = np.zeros((256, 3))

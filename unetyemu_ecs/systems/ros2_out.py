@@ -25,7 +25,8 @@ class Ros2PublisherSystem(esper.Processor):
     Phase: OUTPUTS (order 50, after the sensors and TF). Publishes: every sample of
     ``services.sensors.this_step`` on its topic, ``/clock`` each step, ``/<v>/mission/status``
     (std_msgs/String JSON) when a drone's mission status changes, and every rejected command as a
-    WARN on ``/rosout`` (also in the event log). Rejections found on the transport's thread arrive
+    WARN on ``/rosout`` (also in the event log). Samples marked ``ros2=False`` (a sensor or vehicle
+    switched off ROS 2 in the world file) and the mission status of ``hidden`` vehicles stay local. Rejections found on the transport's thread arrive
     through ``notices`` (a thread-safe queue of ``(vehicle, topic, reason)``). A message that cannot
     be published is reported once per topic in the event log; the simulation goes on.
     """
@@ -33,8 +34,9 @@ class Ros2PublisherSystem(esper.Processor):
     phase = Phase.OUTPUTS
     order = 50
 
-    def __init__(self, backend, notices: queue.SimpleQueue | None = None) -> None:
+    def __init__(self, backend, notices: queue.SimpleQueue | None = None, hidden: frozenset[str] = frozenset()) -> None:
         self.backend = backend
+        self.hidden = hidden                       # vehicles off ROS 2 (world file ``ros2: false``)
         self.notices = notices if notices is not None else queue.SimpleQueue()
         self._failed: set[str] = set()
         self._events_seen = 0
@@ -51,7 +53,8 @@ class Ros2PublisherSystem(esper.Processor):
             ctx.services.note(ctx.sim_time_s, vehicle, f"rejected {topic}: {reason}")
         self._publish(ctx, "/clock", msg_type("rosgraph_msgs/msg/Clock")(clock=stamp(t)))
         for sample in ctx.services.sensors.this_step:
-            self._publish(ctx, sample.topic, sample.msg)
+            if sample.ros2:
+                self._publish(ctx, sample.topic, sample.msg)
         events = ctx.services.events
         for _, vehicle, text in events[self._events_seen:]:
             if text.startswith("rejected"):
@@ -63,6 +66,8 @@ class Ros2PublisherSystem(esper.Processor):
             self._next_status_s = t + 1.0 / STATUS_HZ
             String = msg_type("std_msgs/msg/String")
             for ent, (ident, rt) in esper.get_components(Identity, MissionRuntime):
+                if ident.name in self.hidden:
+                    continue
                 text = json.dumps(rt.status(), sort_keys=True)
                 if self._status.get(ident.name) != text:
                     self._status[ident.name] = text

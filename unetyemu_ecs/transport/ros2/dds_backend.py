@@ -235,5 +235,30 @@ class DdsCommandListener:
         self._readers.clear()
 
 
-__all__ = ["DISCOVERY_TOPIC", "LOOPBACK_CONFIG", "NODE_NAME", "DdsCommandListener", "DdsPublisher", "Ros2Error",
-           "dds_topic_name", "domain_from_env"]
+class DdsBridge:
+    """The ``dds`` backend as the simulation uses it: a publisher and the command listener on one participant."""
+
+    name = "dds"
+
+    def __init__(self, vehicles: dict[str, str], topic_types: dict[str, str], on_message: Any) -> None:
+        self.publisher = DdsPublisher()
+        try:
+            self.listener = DdsCommandListener(self.publisher, vehicles, topic_types, on_message)
+        except Exception:
+            self.publisher.close()
+            raise
+
+    def publish(self, ros_topic: str, msg: Any) -> None:
+        self.publisher.publish(ros_topic, msg)
+
+    @property
+    def topics(self) -> list[str]:
+        return self.publisher.topics
+
+    def close(self) -> None:
+        self.listener.close()
+        self.publisher.close()
+
+
+__all__ = ["DISCOVERY_TOPIC", "LOOPBACK_CONFIG", "NODE_NAME", "DdsBridge", "DdsCommandListener", "DdsPublisher",
+           "Ros2Error", "dds_topic_name", "domain_from_env"]

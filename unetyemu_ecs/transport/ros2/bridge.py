@@ -1,0 +1,36 @@
+"""Choosing and opening a ROS 2 backend (DESIGN.md §6): ``auto`` | ``rclpy`` | ``dds`` | ``off``.
+
+Both backends have the same shape: ``publish(topic, rosbags_msg)``, ``topics``, ``close()``, and
+they call ``on_message(vehicle, topic_kind, topic, msg)`` from their own thread for every sample on
+a vehicle's command topics (``msg`` has the fields of the topic's type).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from .dds_backend import DdsBridge, Ros2Error
+from .rclpy_backend import RclpyBridge, rclpy_available
+
+CHOICES = ("off", "auto", "rclpy", "dds")
+
+
+def resolve_backend(choice: str) -> str:
+    """``off``, ``rclpy`` or ``dds`` for a user's choice; ``auto`` is ``rclpy`` when it imports, else ``dds``."""
+    if choice not in CHOICES:
+        raise ValueError(f"ros2 must be one of {', '.join(CHOICES)}, got {choice!r}")
+    if choice == "auto":
+        return "rclpy" if rclpy_available() else "dds"
+    return choice
+
+
+def open_bridge(backend: str, vehicles: dict[str, str], topic_types: dict[str, str], on_message: Any) -> Any:
+    """Start backend ``rclpy`` or ``dds`` (as :func:`resolve_backend` gives it); raises :class:`Ros2Error`."""
+    if backend == "rclpy":
+        return RclpyBridge(vehicles, topic_types, on_message)
+    if backend == "dds":
+        return DdsBridge(vehicles, topic_types, on_message)
+    raise ValueError(f"no ROS 2 bridge for backend {backend!r}")
+
+
+__all__ = ["CHOICES", "Ros2Error", "open_bridge", "resolve_backend"]

@@ -1,0 +1,118 @@
+"""The ``rclpy`` ROS 2 backend: the simulator as a node of a sourced ROS 2 Jazzy (any RMW).
+
+Used when ``rclpy`` imports (``--ros2 auto`` picks it first, ``--ros2 rclpy`` insists on it). The
+node ``/unetyemu_sim`` lives in its own rclpy context, so it neither needs nor disturbs a user's
+``rclpy.init()``. Messages stay the rosbags objects the sensors build: publishers send their CDR
+bytes (``Publisher.publish`` takes serialised bytes and hands them to ``rmw_publish_serialized_message``
+unchanged), and the command topics are subscribed raw and decoded with rosbags, so both backends
+hand :func:`~.inbound.apply_command` the same objects. Graph identity, type hashes and discovery
+are rclpy's own. QoS as in :mod:`.dds_backend`: Reliable / Volatile / KeepLast(10), ``/tf_static``
+TransientLocal / KeepLast(1).
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Any, Callable
+
+from ...sensors.messages import deserialize, serialize
+from .dds_backend import NODE_NAME, TRANSIENT_LOCAL_TOPICS, Ros2Error
+
+OnMessage = Callable[[str, str, str, Any], None]
+
+
+def rclpy_available() -> bool:
+    """Whether ``rclpy`` imports here (a sourced ROS 2)."""
+    try:
+        import rclpy  # noqa: F401
+    except Exception:          # ImportError, or a half-sourced install failing to load librcl
+        return False
+    return True
+
+
+class RclpyBridge:
+    """One rclpy node: lazily created publishers, raw subscriptions on a spinning thread."""
+
+    name = "rclpy"
+
+    def __init__(self, vehicles: dict[str, str], topic_types: dict[str, str], on_message: OnMessage) -> None:
+        try:
+            import rclpy
+            from rclpy.executors import SingleThreadedExecutor
+        except Exception as exc:
+            raise Ros2Error(f"--ros2 rclpy: rclpy does not import ({exc}); source a ROS 2 Jazzy "
+                            f"(source /opt/ros/jazzy/setup.bash) or use --ros2 dds") from exc
+        try:
+            self._context = rclpy.context.Context()
+            rclpy.init(context=self._context)       # honours ROS_DOMAIN_ID and the RMW's own configuration
+            self.node = rclpy.create_node(NODE_NAME, context=self._context)
+        except Exception as exc:
+            raise Ros2Error(f"cannot start the rclpy node {NODE_NAME!r}: {exc}") from exc
+        self._publishers: dict[str, Any] = {}
+        self._subscriptions = []
+        for vehicle in vehicles:
+            for topic_kind, type_name in topic_types.items():
+                topic = f"/{vehicle}/{topic_kind}"
+                self._subscriptions.append(self.node.create_subscription(
+                    self._msg_class(type_name), topic, self._callback(vehicle, topic_kind, topic, type_name, on_message),
+                    self._qos(topic), raw=True))
+        self._executor = SingleThreadedExecutor(context=self._context)
+        self._executor.add_node(self.node)
+        self._thread = threading.Thread(target=self._spin, name="unetyemu-ros2-rclpy", daemon=True)
+        self._thread.start()
+
+    @staticmethod
+    def _msg_class(type_name: str) -> type:
+        from rosidl_runtime_py.utilities import get_message
+
+        try:
+            return get_message(type_name)
+        except Exception as exc:
+            raise Ros2Error(f"the sourced ROS 2 has no message type {type_name!r} ({exc})") from exc
+
+    @staticmethod
+    def _qos(topic: str) -> Any:
+        from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+        durable = topic in TRANSIENT_LOCAL_TOPICS
+        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1 if durable else 10,
+                          reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.TRANSIENT_LOCAL if durable else DurabilityPolicy.VOLATILE)
+
+    @staticmethod
+    def _callback(vehicle: str, topic_kind: str, topic: str, type_name: str, on_message: OnMessage) -> Callable:
+        def receive(cdr: bytes) -> None:          # executor thread
+            try:
+                msg = deserialize(bytes(cdr), type_name)
+            except Exception:                     # not a valid message of the topic's type: nothing to apply
+                return
+            on_message(vehicle, topic_kind, topic, msg)
+        return receive
+
+    def _spin(self) -> None:
+        try:
+            self._executor.spin()
+        except Exception:                         # the context was shut down under it (close)
+            pass
+
+    def publish(self, ros_topic: str, msg: Any) -> None:
+        """Publish a rosbags message object on ``ros_topic`` (its CDR bytes, as they are)."""
+        pub = self._publishers.get(ros_topic)
+        if pub is None:
+            pub = self._publishers[ros_topic] = self.node.create_publisher(
+                self._msg_class(msg.__msgtype__), ros_topic, self._qos(ros_topic))
+        pub.publish(serialize(msg))
+
+    @property
+    def topics(self) -> list[str]:
+        return sorted(self._publishers)
+
+    def close(self) -> None:
+        self._executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+        self._context.try_shutdown()
+        self._thread.join(timeout=2.0)
+        self._publishers.clear()
+
+
+__all__ = ["RclpyBridge", "rclpy_available"]
