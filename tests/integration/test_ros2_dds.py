@@ -259,3 +259,24 @@ def test_ros2_backend_choice_auto_falls_back_to_dds_and_rclpy_without_ros_says_w
         bridge.resolve_backend("zenoh")
     with pytest.raises(Ros2Error, match="rclpy does not import.*source /opt/ros/jazzy/setup.bash.*--ros2 dds"):
         Simulation(load_world_text(SWITCHES_WORLD), ros2="rclpy")
+
+
+def test_the_rviz2_config_shows_only_topics_and_frames_the_delivery_scenario_publishes_with_matching_types():
+    import yaml
+
+    root = Path(__file__).resolve().parents[2]
+    config = yaml.safe_load((root / "worlds" / "urban_delivery.rviz").read_text())
+    displays = config["Visualization Manager"]["Displays"]
+    with Simulation.from_file(root / "worlds" / "urban_delivery.yaml") as sim:
+        sim.step()
+        published = {s.topic: s.msg.__msgtype__ for s in sim.services.sensors.latest.values()}
+        _, static = sim.transforms()
+    expects = {"rviz_default_plugins/PointCloud2": "sensor_msgs/msg/PointCloud2",
+               "rviz_default_plugins/Image": "sensor_msgs/msg/Image",
+               "rviz_default_plugins/Odometry": "nav_msgs/msg/Odometry"}
+    shown = [(d["Class"], d["Topic"]["Value"]) for d in displays if "Topic" in d]
+    assert len(shown) == 7
+    for cls, topic in shown:
+        assert published.get(topic) == expects[cls], (cls, topic)
+    assert config["Visualization Manager"]["Global Options"]["Fixed Frame"] == "map"
+    assert "map" in {t.header.frame_id for t in static.transforms}

@@ -26,7 +26,7 @@ LOOPBACK_CONFIG = """<CycloneDDS><Domain id="any">
     <MaxMessageSize>65000B</MaxMessageSize><FragmentSize>62000B</FragmentSize></General>
   <Discovery><ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>100</MaxAutoParticipantIndex>
     <Peers><Peer address="127.0.0.1"/></Peers></Discovery>
-  <Internal><BurstSize><MaxInitTransmit>150000</MaxInitTransmit><MaxRexmit>150000</MaxRexmit></BurstSize>
+  <Internal><BurstSize><MaxInitTransmit>150000</MaxInitTransmit><MaxRexmit>150kB</MaxRexmit></BurstSize>
     <HeartbeatInterval min="5ms" minsched="10ms">20ms</HeartbeatInterval></Internal>
 </Domain></CycloneDDS>"""
 # Why the Internal settings: a 640x480 image is 15 fragments of 62 kB; sent in one burst it overflows a
