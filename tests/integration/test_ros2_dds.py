@@ -36,25 +36,27 @@ vehicles:
     components: {gps: {}, depth_camera: {width: 64, height: 48}}
 """
 
-TOPICS = {
-    "/d1/lidar/points": "sensor_msgs/msg/PointCloud2", "/d1/imu/data": "sensor_msgs/msg/Imu",
-    "/d1/battery": "sensor_msgs/msg/BatteryState", "/d1/odom": "nav_msgs/msg/Odometry",
-    "/d1/camera/image_raw": "sensor_msgs/msg/Image", "/d1/camera/camera_info": "sensor_msgs/msg/CameraInfo",
-    "/c1/gps/fix": "sensor_msgs/msg/NavSatFix", "/c1/depth/image_raw": "sensor_msgs/msg/Image",
-    "/tf": "tf2_msgs/msg/TFMessage", "/tf_static": "tf2_msgs/msg/TFMessage", "/clock": "rosgraph_msgs/msg/Clock",
-}
+DELIVERY = Path(__file__).resolve().parents[2] / "worlds" / "urban_delivery.yaml"
+
+
+def _delivery_topics() -> dict[str, str]:
+    """Every topic the delivery scenario publishes, with its type (all sensors fire at the first step)."""
+    with Simulation.from_file(DELIVERY) as sim:
+        sim.step()
+        return {s.topic: s.msg.__msgtype__ for s in sim.services.sensors.latest.values()} | {
+            "/clock": "rosgraph_msgs/msg/Clock"}
 
 
 @pytest.fixture(scope="module")
 def exchange():
-    """Run the listener while the simulation publishes (1 s in real time for discovery, then 3 s as fast
-    as it goes, every message recorded); return what the peer got and what was sent."""
-    peer = subprocess.Popen([sys.executable, str(LISTENER), "60.0", *(f"{k}={v}" for k, v in TOPICS.items())],
+    """Run the listener while the delivery scenario publishes (1 s in real time for discovery, then
+    3 s as fast as it goes, every message recorded); return the topics, what the peer got and what was sent."""
+    topics = _delivery_topics()
+    peer = subprocess.Popen([sys.executable, str(LISTENER), "60.0", *(f"{k}={v}" for k, v in topics.items())],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     assert peer.stdout.readline().strip() == "ready"
     sent: dict[str, list] = {}
-    with Simulation(load_world_text(WORLD), ros2="dds") as sim:
-        sim.set_target("d1", 0.0, 0.0, 3.0)
+    with Simulation.from_file(DELIVERY, ros2="dds") as sim:
         start = time.monotonic()
         for i in range(int(4.0 / sim.dt_s)):
             sim.step()
@@ -62,39 +64,58 @@ def exchange():
                 sent.setdefault(s.topic, []).append(s.msg)
             if i < int(1.0 / sim.dt_s):                 # the first second in real time: discovery
                 time.sleep(max(0.0, start + (i + 1) * sim.dt_s - time.monotonic()))
+        vehicles = list(sim.vehicle_names)
     out, err = peer.communicate(timeout=90)
-    return json.loads(out.strip().splitlines()[-1]), sent
+    return topics, json.loads(out.strip().splitlines()[-1]), sent, vehicles
 
 
-def test_every_topic_reaches_a_plain_cyclonedds_peer_and_decodes_with_the_jazzy_definitions(exchange):
-    got, sent = exchange
-    for topic, type_name in TOPICS.items():
+def test_every_topic_of_the_delivery_scenario_reaches_a_plain_cyclonedds_peer_and_decodes_with_jazzy_definitions(
+        exchange):
+    topics, got, sent, _ = exchange
+    assert len(topics) >= 18                              # 16 sensor topics of the paper's sensors, /tf, /tf_static, /clock
+    for topic, type_name in topics.items():
         assert got["counts"][topic] > 0, topic
         msg = deserialize(bytes.fromhex(got["last"][topic]), type_name)
         if topic == "/clock":
-            assert msg.clock.sec >= 0
+            assert 1.0 < msg.clock.sec + msg.clock.nanosec * 1e-9 <= 4.0
             continue
         # the peer's last sample is one of the messages the simulation produced, byte for byte
         produced = {serialize(m) for m in sent[topic]}
         assert serialize(msg) in produced, topic
-    # sanity of a few fields, as a ROS 2 user would read them
-    cloud = deserialize(bytes.fromhex(got["last"]["/d1/lidar/points"]), "sensor_msgs/msg/PointCloud2")
-    assert cloud.header.frame_id == "d1/lidar_link" and len(read_points(cloud)) == cloud.width > 100
-    image = deserialize(bytes.fromhex(got["last"]["/d1/camera/image_raw"]), "sensor_msgs/msg/Image")
-    assert (image.width, image.height, image.encoding) == (64, 48, "rgb8")
-    depth = deserialize(bytes.fromhex(got["last"]["/c1/depth/image_raw"]), "sensor_msgs/msg/Image")
-    assert depth.encoding == "32FC1" and depth.step == 64 * 4
-    imu = deserialize(bytes.fromhex(got["last"]["/d1/imu/data"]), "sensor_msgs/msg/Imu")
-    assert abs(np.linalg.norm([imu.linear_acceleration.x, imu.linear_acceleration.y, imu.linear_acceleration.z]) - 9.81) < 2.0
-    fix = deserialize(bytes.fromhex(got["last"]["/c1/gps/fix"]), "sensor_msgs/msg/NavSatFix")
-    assert 40.0 < fix.latitude < 41.0
-    static = deserialize(bytes.fromhex(got["last"]["/tf_static"]), "tf2_msgs/msg/TFMessage")
-    assert ("d1/base_link", "d1/lidar_link") in {(t.header.frame_id, t.child_frame_id) for t in static.transforms}
+    last = {t: deserialize(bytes.fromhex(got["last"][t]), ty) for t, ty in topics.items()}
+    # PointCloud2: the points are the in-process scan of the same stamp
+    cloud = last["/drone1/lidar/points"]
+    scan = next(m for m in sent["/drone1/lidar/points"] if m.header.stamp == cloud.header.stamp)
+    assert cloud.header.frame_id == "drone1/lidar_link" and len(read_points(cloud)) == cloud.width > 100
+    np.testing.assert_array_equal(read_points(cloud), read_points(scan))
+    # Images: sizes and encodings as configured
+    rgb, depth = last["/drone3/camera/image_raw"], last["/drone2/depth/image_raw"]
+    assert (rgb.width, rgb.height, rgb.encoding, rgb.step, len(rgb.data)) == (320, 240, "rgb8", 960, 320 * 240 * 3)
+    assert (depth.width, depth.height, depth.encoding, depth.step) == (320, 240, "32FC1", 320 * 4)
+    info = last["/drone3/camera/camera_info"]
+    assert (info.width, info.height) == (320, 240) and info.k[0] > 0 and info.header.frame_id == rgb.header.frame_id
+    # Imu: specific force of about +g up (drone1 is taking off); NavSatFix near the world origin
+    imu = last["/drone1/imu/data"]
+    assert abs(np.linalg.norm([imu.linear_acceleration.x, imu.linear_acceleration.y,
+                               imu.linear_acceleration.z]) - 9.81) < 2.0 and imu.linear_acceleration.z > 7.0
+    fix = last["/truck1/gps/fix"]
+    assert abs(fix.latitude - 40.4168) < 0.01 and abs(fix.longitude + 3.7038) < 0.01 and fix.status.status >= 0
+    # Odometry in the vehicle's odom frame, BatteryState full-ish and discharging
+    odom = last["/drone1/odom"]
+    assert (odom.header.frame_id, odom.child_frame_id) == ("drone1/odom", "drone1/base_link")
+    assert abs(odom.pose.pose.orientation.w ** 2 + odom.pose.pose.orientation.z ** 2 +
+               odom.pose.pose.orientation.x ** 2 + odom.pose.pose.orientation.y ** 2 - 1.0) < 1e-6
+    battery = last["/drone1/battery"]
+    assert 0.9 < battery.percentage <= 1.0 and battery.voltage > 10.0 and battery.current < 0.0
+    # TF: the static tree has the sensor mounts, /tf every vehicle's base_link in its odom frame
+    static = last["/tf_static"]
+    assert ("drone1/base_link", "drone1/lidar_link") in {(t.header.frame_id, t.child_frame_id) for t in static.transforms}
+    assert {t.child_frame_id for t in last["/tf"].transforms} >= {"drone1/base_link", "truck1/base_link"}
 
 
 def test_every_writer_announces_xcdr1_and_ros2_names_in_discovery(exchange):
-    got, _ = exchange
-    for topic, type_name in TOPICS.items():
+    topics, got, _, _ = exchange
+    for topic, type_name in topics.items():
         writer = got["writers"][topic]
         pkg, _, name = type_name.split("/")
         assert writer["type"] == f"{pkg}::msg::dds_::{name}_", topic
@@ -152,7 +173,7 @@ def test_commands_from_a_ros2_peer_drive_the_vehicles_and_garbage_is_rejected_wi
 
 
 def test_the_simulator_is_a_ros2_node_whose_endpoints_announce_their_jazzy_type_hashes(exchange):
-    got, _ = exchange
+    topics, got, _, vehicles = exchange
     from unetyemu_ecs.sensors.messages import typestore
     # ros_discovery_info: one node, /unetyemu_sim, listing the writers the peer matched
     assert got["graph"], "no ros_discovery_info received"
@@ -160,11 +181,11 @@ def test_the_simulator_is_a_ros2_node_whose_endpoints_announce_their_jazzy_type_
     (node,) = info.node_entities_info_seq
     assert (node.node_namespace, node.node_name) == ("/", "unetyemu_sim")
     writer_gids = {bytes(g.data).hex() for g in node.writer_gid_seq}
-    for topic, type_name in TOPICS.items():
+    for topic, type_name in topics.items():
         writer = got["writers"][topic]
         assert writer["gid"][:32] in writer_gids, topic
         assert writer["user_data"] == f"typehash={typestore().hash_rihs01(type_name)};", topic
-    assert len(node.reader_gid_seq) == 2 * 4             # mission, target, teleop, cmd_vel of d1 and c1
+    assert len(node.reader_gid_seq) == 4 * len(vehicles)   # mission, target, teleop, cmd_vel of every vehicle
 
 
 def test_keyboard_teleop_in_a_terminal_drives_the_drone_over_ros2():
