@@ -6,6 +6,7 @@ Exit codes: 0 success, 1 runtime failure, 2 bad input (arguments or world file),
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -165,6 +166,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     except OSError as exc:
         print(f"error: cannot write outputs to {out}: {exc}", file=sys.stderr)
         return EXIT_FAILURE
+    if sim.ros2_backend != "off" and not args.quiet:
+        print(f"ROS 2: node /unetyemu_sim on the {sim.ros2_backend} backend, ROS_DOMAIN_ID "
+              f"{os.environ.get('ROS_DOMAIN_ID') or 0}"
+              + (", loopback only (set CYCLONEDDS_URI for other hosts)"
+                 if sim.ros2_backend == "dds" and not os.environ.get("CYCLONEDDS_URI") else ""), file=sys.stderr)
     try:
         progress = None if args.quiet else _Progress(sys.stderr)
         stats = sim.run(duration=duration, rate=rate, progress=progress)

@@ -139,3 +139,22 @@ def test_a_bad_ros_domain_id_is_a_clear_error_not_a_traceback(tmp_path):
     res = subprocess.run([*cmd, "run", str(WORLDS / "empty.yaml"), "--ros2", "dds", "--duration", "0.1",
                           "--out", str(tmp_path / "r")], cwd=REPO_ROOT, capture_output=True, text=True, timeout=120, env=env)
     assert res.returncode == 1 and "ROS_DOMAIN_ID must be an integer" in res.stderr and "Traceback" not in res.stderr
+
+
+def test_run_with_ros2_auto_says_which_backend_it_chose_and_rclpy_without_ros_is_a_clear_error(tmp_path):
+    exe = shutil.which("unetyemu")
+    cmd = [exe] if exe else [sys.executable, "-m", "unetyemu_ecs.cli"]
+    env = {k: v for k, v in os.environ.items() if k not in ("CYCLONEDDS_URI", "ROS_DOMAIN_ID")}
+    res = subprocess.run([*cmd, "run", str(WORLDS / "empty.yaml"), "--ros2", "auto", "--duration", "0.5",
+                          "--out", str(tmp_path / "a")], cwd=REPO_ROOT, capture_output=True, text=True, timeout=120,
+                         env=env)
+    assert res.returncode == 0, res.stderr
+    from unetyemu_ecs.transport.ros2.rclpy_backend import rclpy_available
+    backend = "rclpy" if rclpy_available() else "dds"
+    assert f"ROS 2: node /unetyemu_sim on the {backend} backend, ROS_DOMAIN_ID 0" in res.stderr
+    if backend == "dds":
+        assert "loopback only" in res.stderr
+        res = subprocess.run([*cmd, "run", str(WORLDS / "empty.yaml"), "--ros2", "rclpy", "--duration", "0.1",
+                              "--out", str(tmp_path / "r")], cwd=REPO_ROOT, capture_output=True, text=True,
+                             timeout=120, env=env)
+        assert res.returncode == 1 and "rclpy does not import" in res.stderr and "Traceback" not in res.stderr
