@@ -27,12 +27,13 @@ vehicles:
 
 
 def test_auto_picks_rclpy_and_a_ros2_node_receives_the_imu_and_flies_the_drone_by_target():
+    from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import Imu, PointCloud2
     from std_msgs.msg import Float32MultiArray
 
-    ctx = rclpy.context.Context()
+    ctx = Context()
     rclpy.init(context=ctx)
     node = rclpy.create_node("unetyemu_test_peer", context=ctx)
     got: dict[str, list] = {"imu": [], "cloud": []}

@@ -38,12 +38,13 @@ class RclpyBridge:
     def __init__(self, vehicles: dict[str, str], topic_types: dict[str, str], on_message: OnMessage) -> None:
         try:
             import rclpy
+            from rclpy.context import Context
             from rclpy.executors import SingleThreadedExecutor
         except Exception as exc:
             raise Ros2Error(f"--ros2 rclpy: rclpy does not import ({exc}); source a ROS 2 Jazzy "
                             f"(source /opt/ros/jazzy/setup.bash) or use --ros2 dds") from exc
         try:
-            self._context = rclpy.context.Context()
+            self._context = Context()
             rclpy.init(context=self._context)       # honours ROS_DOMAIN_ID and the RMW's own configuration
             self.node = rclpy.create_node(NODE_NAME, context=self._context)
         except Exception as exc:
