@@ -168,8 +168,10 @@ def test_commands_from_a_ros2_peer_drive_the_vehicles_and_garbage_is_rejected_wi
     for reason in reasons:
         assert any(reason in e for e in events), (reason, events)
         assert any(reason in line for line in got["rosout"]), (reason, got["rosout"])
-    # AND the mission's progress reached the peer as status messages
+    # AND the mission's progress reached the peer as status messages, the rejected mission among them
     assert any('"completed"' in s for s in got["status"]) or any('"running"' in s for s in got["status"])
+    rejected = [json.loads(s) for s in got["status"] if '"rejected"' in s]
+    assert rejected and "mission rejected" in rejected[0]["reason"] and rejected[0]["mission"] is None
 
 
 def test_the_simulator_is_a_ros2_node_whose_endpoints_announce_their_jazzy_type_hashes(exchange):

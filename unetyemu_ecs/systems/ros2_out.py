@@ -24,7 +24,8 @@ class Ros2PublisherSystem(esper.Processor):
 
     Phase: OUTPUTS (order 50, after the sensors and TF). Publishes: every sample of
     ``services.sensors.this_step`` on its topic, ``/clock`` each step, ``/<v>/mission/status``
-    (std_msgs/String JSON) when a drone's mission status changes, and every rejected command as a
+    (std_msgs/String JSON) when a drone's mission status changes (and ``{"state": "rejected",
+    "reason": ...}`` when a mission sent over ROS 2 is rejected), and every rejected command as a
     WARN on ``/rosout`` (also in the event log). Samples marked ``ros2=False`` (a sensor or vehicle
     switched off ROS 2 in the world file) and the mission status of ``hidden`` vehicles stay local. Rejections found on the transport's thread arrive
     through ``notices`` (a thread-safe queue of ``(vehicle, topic, reason)``). A message that cannot
@@ -51,6 +52,12 @@ class Ros2PublisherSystem(esper.Processor):
             except queue.Empty:
                 break
             ctx.services.note(ctx.sim_time_s, vehicle, f"rejected {topic}: {reason}")
+            if topic.endswith("/mission"):
+                # say it where mission progress is watched too; the running mission's status follows
+                # again at the next status check (it is no longer "unchanged")
+                text = json.dumps({"mission": None, "state": "rejected", "reason": reason}, sort_keys=True)
+                self._publish(ctx, f"{topic}/status", msg_type("std_msgs/msg/String")(data=text))
+                self._status.pop(vehicle, None)
         self._publish(ctx, "/clock", msg_type("rosgraph_msgs/msg/Clock")(clock=stamp(t)))
         for sample in ctx.services.sensors.this_step:
             if sample.ros2:
