@@ -59,7 +59,7 @@ def test_delivery_scenario_real_time_factor(benchmark, ros2, subscriber):
         sim = Simulation.from_file(ROOT / "worlds" / "urban_delivery.yaml", ros2=ros2)
         if subscriber:
             sys.path.insert(0, str(ROOT / "tests" / "fastdds_peer"))
-            from build import build_peer
+            from peer_build import build_peer
 
             peer = subprocess.Popen([str(build_peer()), "/drone1/imu/data", "/drone1/lidar/points",
                                      "/drone3/camera/image_raw"], stdin=subprocess.PIPE, stdout=subprocess.PIPE,

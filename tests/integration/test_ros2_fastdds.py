@@ -19,7 +19,7 @@ import pytest
 from unetyemu_ecs import Simulation, load_world_text
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "fastdds_peer"))
-from build import PeerBuildError, build_peer  # noqa: E402
+from peer_build import PeerBuildError, build_peer  # noqa: E402
 
 WORLD = """
 world: {name: fastdds, physics_hz: 240, seed: 11}
