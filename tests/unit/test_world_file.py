@@ -159,3 +159,17 @@ vehicles:
     with pytest.raises(ConfigError) as err:
         load_world_text(text)
     assert "vehicles[0].sensors[1]" in str(err.value) and "unknown sensor 'sonar'" in str(err.value)
+
+
+def test_a_sensor_topic_that_is_not_an_absolute_ros2_name_is_reported_and_ros2_switches_are_booleans():
+    text = GOOD + "    ros2: sometimes\n"
+    assert any("vehicles[0].ros2: expected true or false" in e for e in _issues(text))
+    text = GOOD + "    components: {lidar: {topic: d1/points}, imu: {topic: /d1/imu data}, camera: {ros2: 2}}\n"
+    errors = "\n".join(_issues(text))
+    assert "vehicles[0].components.lidar.topic: 'd1/points' is not an absolute ROS 2 topic name" in errors
+    assert "vehicles[0].components.imu.topic: '/d1/imu data' is not an absolute ROS 2 topic name" in errors
+    assert "vehicles[0].components.camera.ros2: expected true or false" in errors
+    world = load_world_text(GOOD + "    ros2: false\n    components: {imu: {topic: /d1/imu_fast}}\n")
+    (drone,) = world.vehicles
+    assert drone.ros2 is False and drone.components["imu"].ros2 is False       # the vehicle takes its sensors along
+    assert drone.components["imu"].topic == "/d1/imu_fast"

@@ -13,6 +13,7 @@ Frames (DESIGN.md §3): the vehicle body is ``<vehicle>/base_link`` (FLU); a sen
 
 from __future__ import annotations
 
+import re
 import zlib
 from dataclasses import dataclass, field
 from typing import Annotated, Any, ClassVar
@@ -21,9 +22,13 @@ import esper
 import numpy as np
 
 from ..components.body import FleetSlot, Identity
-from ..config.schema import Gt, NonEmpty
+from ..config.schema import FieldError, Gt, NonEmpty
 from ..frames import quat_xyzw_from_euler_rpy
 from ..world import StepContext
+
+
+# an absolute ROS 2 topic name: /token[/token...], tokens of letters, digits and _, not starting with a digit
+ROS_TOPIC_RE = re.compile(r"^(/[A-Za-z_][A-Za-z0-9_]*)+$")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -44,6 +49,11 @@ class SensorSpec:
     topic: Annotated[str, NonEmpty()] | None = None                  # None: /<vehicle>/<default suffix>
     frame_id: Annotated[str, NonEmpty()] | None = None               # None: <vehicle>/<default link>
     ros2: bool = True          # publish on ROS 2 when the bridge is on (False: Python API and logs only)
+
+    def __post_init__(self) -> None:
+        if self.topic is not None and not ROS_TOPIC_RE.match(self.topic):
+            raise FieldError("topic", f"{self.topic!r} is not an absolute ROS 2 topic name (/a/b_1: "
+                                      f"letters, digits and _, tokens not starting with a digit)")
 
     def frame_name(self, vehicle: str, fallback_link: str = "base_link") -> str:
         """The frame this sensor's messages are stamped with: ``frame_id`` if given, else
