@@ -27,15 +27,17 @@ class Ros2PublisherSystem(esper.Processor):
     (std_msgs/String JSON) when a drone's mission status changes (and ``{"state": "rejected",
     "reason": ...}`` when a mission sent over ROS 2 is rejected), and every rejected command as a
     WARN on ``/rosout`` (also in the event log). Samples marked ``ros2=False`` (a sensor or vehicle
-    switched off ROS 2 in the world file) and the mission status of ``hidden`` vehicles stay local. Rejections found on the transport's thread arrive
-    through ``notices`` (a thread-safe queue of ``(vehicle, topic, reason)``). A message that cannot
-    be published is reported once per topic in the event log; the simulation goes on.
+    switched off ROS 2 in the world file) and the mission status of ``hidden`` vehicles stay local.
+    Rejections found on the transport's thread arrive through ``notices`` (a thread-safe queue of
+    ``(vehicle, topic, reason)``). A message that cannot be published is reported once per topic in
+    the event log; the simulation goes on.
     """
 
     phase = Phase.OUTPUTS
     order = 50
 
-    def __init__(self, backend, notices: queue.SimpleQueue | None = None, hidden: frozenset[str] = frozenset()) -> None:
+    def __init__(self, backend, notices: queue.SimpleQueue | None = None,
+                 hidden: frozenset[str] = frozenset()) -> None:
         self.backend = backend
         self.hidden = hidden                       # vehicles off ROS 2 (world file ``ros2: false``)
         self.notices = notices if notices is not None else queue.SimpleQueue()

@@ -2,10 +2,11 @@
 
 ``/<v>/mission`` (std_msgs/String, mission JSON), ``/<v>/target`` (std_msgs/Float32MultiArray
 ``[x, y, z, yaw_deg, speed]``), ``/<v>/teleop`` (Float32MultiArray: drone ``[throttle, pitch,
-roll, yaw]``, car ``[throttle, brake, steering]``), ``/<v>/cmd_vel`` (geometry_msgs/Twist, body frame: drones
-``linear.x/y/z`` and ``angular.z``, cars ``linear.x`` and ``angular.z``). Each message becomes one call of the simulation's command API, which
-validates it and queues it for the loop (thread-safe); anything wrong (bad JSON, wrong array
-length, NaN/inf, out of range) raises ``ValueError`` with the reason.
+roll, yaw]``, car ``[throttle, brake, steering]``), ``/<v>/cmd_vel`` (geometry_msgs/Twist, body
+frame: drones ``linear.x/y/z`` and ``angular.z``, cars ``linear.x`` and ``angular.z``). Each message
+becomes one call of the simulation's command API, which validates it and queues it for the loop
+(thread-safe); anything wrong (bad JSON, wrong array length, NaN/inf, out of range) raises
+``ValueError`` with the reason.
 """
 
 from __future__ import annotations

@@ -3,10 +3,10 @@
 Used when ``rclpy`` imports (``--ros2 auto`` picks it first, ``--ros2 rclpy`` insists on it). The
 node ``/unetyemu_sim`` lives in its own rclpy context, so it neither needs nor disturbs a user's
 ``rclpy.init()``. Messages stay the rosbags objects the sensors build: publishers send their CDR
-bytes (``Publisher.publish`` takes serialised bytes and hands them to ``rmw_publish_serialized_message``
-unchanged), and the command topics are subscribed raw and decoded with rosbags, so both backends
-hand :func:`~.inbound.apply_command` the same objects. Graph identity, type hashes and discovery
-are rclpy's own. QoS as in :mod:`.dds_backend`: Reliable / Volatile / KeepLast(10), ``/tf_static``
+bytes (``Publisher.publish`` takes serialised bytes and hands them to the RMW unchanged), and the
+command topics are subscribed raw and decoded with rosbags, so both backends hand
+:func:`~.inbound.apply_command` the same objects. Graph identity, type hashes and discovery are
+rclpy's own. QoS as in :mod:`.dds_backend`: Reliable / Volatile / KeepLast(10), ``/tf_static``
 TransientLocal / KeepLast(1).
 """
 
@@ -85,8 +85,8 @@ class RclpyBridge:
         def receive(cdr: bytes) -> None:          # executor thread
             try:
                 msg = deserialize(bytes(cdr), type_name)
-            except Exception:                     # not a valid message of the topic's type: nothing to apply
-                return
+            except Exception:         # the RMW delivered it as the topic's type, so only a rosbags/ROS 2
+                return                # definition mismatch lands here: nothing that could be applied
             on_message(vehicle, topic_kind, topic, msg)
         return receive
 
