@@ -163,8 +163,12 @@ class SensorSystemBase(esper.Processor):
     def measure(self, ctx: StepContext, due: list[MountedSensor], time_s: float) -> None:
         raise NotImplementedError
 
-    def publish(self, ctx: StepContext, sensor: MountedSensor, time_s: float, msg: Any) -> None:
-        ctx.services.sensors.put(SensorSample(time_s, sensor.vehicle, self.key, sensor.topic, msg, sensor.spec.ros2))
+    def publish(self, ctx: StepContext, sensor: MountedSensor, time_s: float, msg: Any, *, key: str | None = None,
+                topic: str | None = None) -> None:
+        """Put ``msg`` in the outputs under this system's key and the sensor's topic (or ``key`` /
+        ``topic`` for a companion message such as a camera's CameraInfo), on ROS 2 if the sensor is."""
+        ctx.services.sensors.put(SensorSample(time_s, sensor.vehicle, key or self.key, topic or sensor.topic, msg,
+                                              sensor.spec.ros2))
 
 
 __all__ = ["MountedSensor", "SensorOutputs", "SensorSample", "SensorSpec", "SensorSystemBase"]

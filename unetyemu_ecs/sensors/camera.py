@@ -30,7 +30,7 @@ from ..phases import Phase
 from ..physics.static_scene import RGBA
 from ..scene.primitives import SceneClass
 from ..world import StepContext
-from .base import MountedSensor, SensorSample, SensorSpec
+from .base import MountedSensor, SensorSpec
 from .raycast_system import RaycastSensorSystem
 from .messages import header, msg_type
 from .raycast import MOVING_BODY, NO_HIT
@@ -143,7 +143,7 @@ class _CameraSystem(RaycastSensorSystem):
         """The CameraInfo of a frame, on ``<image topic's namespace>/camera_info`` (image_transport)."""
         topic = s.topic.rsplit("/", 1)[0] + "/camera_info"
         msg = camera_info(time_s, s.frame_id, s.spec.width, s.spec.height, s.spec.hfov_deg)
-        ctx.services.sensors.put(SensorSample(time_s, s.vehicle, f"{self.key}_info", topic, msg, s.spec.ros2))
+        self.publish(ctx, s, time_s, msg, key=f"{self.key}_info", topic=topic)
 
 
 _CLASS_RGB = np.zeros((256, 3))
