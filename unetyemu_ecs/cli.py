@@ -144,7 +144,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .config.world_file import load_world
     from .physics.client import PhysicsError
     from .sensors.raycast import SensorUnavailable
-    from .transport.ros2.dds_backend import Ros2Error
+    from .transport.ros2.dds_backend import Ros2Error, domain_from_env
     from .summary import build_summary, format_summary, write_summary
 
     try:
@@ -167,8 +167,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(f"error: cannot write outputs to {out}: {exc}", file=sys.stderr)
         return EXIT_FAILURE
     if sim.ros2_backend != "off" and not args.quiet:
-        print(f"ROS 2: node /unetyemu_sim on the {sim.ros2_backend} backend, ROS_DOMAIN_ID "
-              f"{os.environ.get('ROS_DOMAIN_ID') or 0}"
+        print(f"ROS 2: node /unetyemu_sim on the {sim.ros2_backend} backend, ROS_DOMAIN_ID {domain_from_env()}"
               + (", loopback only (set CYCLONEDDS_URI for other hosts)"
                  if sim.ros2_backend == "dds" and not os.environ.get("CYCLONEDDS_URI") else ""), file=sys.stderr)
     try:
