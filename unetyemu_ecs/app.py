@@ -70,7 +70,7 @@ class Simulation:
     ros2 : ``"off"`` (default): no ROS 2; ``"dds"``: the simulator is a ROS 2 node over its own DDS
         participant (no ROS install needed); ``"rclpy"``: a node of the sourced ROS 2; ``"auto"``:
         rclpy when it imports, else dds. It publishes every sensor message, TF, ``/clock`` and
-        mission status and listens to each vehicle's command topics (DESIGN.md §6).
+        mission status and listens to each vehicle's command topics (docs/architecture.md §6).
     """
 
     def __init__(self, world: WorldDefinition, *, gui: bool = False, out_dir: str | Path | None = None,

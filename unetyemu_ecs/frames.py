@@ -1,7 +1,7 @@
-"""Every frame and quaternion conversion in the engine (STYLE.md: "Frame conversions live in
-frames.py only").
+"""Every frame and quaternion conversion in the engine (docs/architecture.md §10: frame
+conversions live in frames.py only).
 
-Conventions (REP 103, DESIGN.md §3):
+Conventions (REP 103, docs/architecture.md §3):
 
 - World frame ENU (x east, y north, z up); body frame FLU (x forward, y left, z up).
 - Camera optical frame: z forward, x right, y down.

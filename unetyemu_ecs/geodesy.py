@@ -1,4 +1,4 @@
-"""WGS84 geodetic <-> ECEF <-> local ENU conversions (a proper local tangent plane, DESIGN.md §3).
+"""WGS84 geodetic <-> ECEF <-> local ENU conversions (a proper local tangent plane, docs/architecture.md §3).
 
 Ellipsoid constants are the defining WGS84 parameters from NIMA TR8350.2, "Department of Defense
 World Geodetic System 1984", 3rd edition, amendment 1 (2000), table 3.1: semi-major axis
@@ -19,7 +19,7 @@ World Geodetic System 1984", 3rd edition, amendment 1 (2000), table 3.1: semi-ma
 
 ``LocalTangentPlane`` caches the origin's ECEF position and rotation, for per-step fleet use; the
 module-level ``enu_to_geodetic`` and ``geodetic_to_enu`` wrap a cached instance per origin.
-Degrees appear only here, at the input/output edge (STYLE.md "Naming").
+Degrees appear only here, at the input/output edge (docs/architecture.md §10, naming).
 """
 
 from __future__ import annotations

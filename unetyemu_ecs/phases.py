@@ -1,4 +1,4 @@
-"""The fixed order of work inside one physics step (DESIGN.md §2); the only ordering authority.
+"""The fixed order of work inside one physics step (docs/architecture.md §2); the only ordering authority.
 
 esper runs processors with the *highest* priority first, so a system in phase ``P`` with order
 ``k`` is registered with priority ``-(100 * P + k)``: earlier phases, and lower orders within a

@@ -1,6 +1,6 @@
 """Plugin discovery through Python entry points, and the registry the world loader resolves against.
 
-Three entry-point groups (DESIGN.md §2):
+Three entry-point groups (docs/architecture.md §2):
 
 ``unetyemu_ecs.components``
     name = the world-file key under ``vehicles[i].components`` / ``packages[i].components``;

@@ -1,7 +1,7 @@
 """Physical constants and angle helpers, in SI units with the unit in every name.
 
 ``GRAVITY_M_S2`` is 9.81 m/s², the value used by the paper's scene and by every vehicle default
-in this project (DESIGN.md §4), not the standard gravity 9.80665 m/s² (CGPM 1901). The 0.03 %
+in this project (docs/architecture.md §4), not the standard gravity 9.80665 m/s² (CGPM 1901). The 0.03 %
 difference is below the accuracy of the vehicle models; keeping one value everywhere means hover
 thrust, IMU readings and PyBullet's gravity agree exactly. ``AIR_DENSITY_KG_M3`` is the ISA
 sea-level density at 15 °C (ISO 2533:1975).

@@ -1,4 +1,4 @@
-"""World-file schema (DESIGN.md §8) and loading: YAML -> validated, resolved world definition.
+"""World-file schema (docs/architecture.md §8) and loading: YAML -> validated, resolved world definition.
 
 Loading happens in three passes, each collecting *every* problem before anything starts:
 

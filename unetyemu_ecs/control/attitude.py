@@ -29,7 +29,7 @@ MIN_COS_TILT = float(np.cos(np.deg2rad(60.0)))   # tilt compensation stops growi
 class StabilizerGains:
     """Layer-2 gains, the same default for every preset (world-file key ``stabilizer``).
 
-    Sources: pitch/roll 0.02 per degree and 0.2 are the paper's reference values (NOTES.md); the
+    Sources: pitch/roll 0.02 per degree and 0.2 are the paper's reference values (its Unity project); the
     vertical-speed PID is ours (in SI, on vertical acceleration), tuned for a 240 Hz loop to hold
     hover within 5 cm without overshooting a climb.
     """

@@ -1,6 +1,6 @@
 """Parse mission text (ours, or the paper's Unity format) into a :class:`MissionSpec`, and back.
 
-Our format (DESIGN.md §5; the schema is :mod:`unetyemu_ecs.mission.spec`)
+Our format (docs/architecture.md §5; the schema is :mod:`unetyemu_ecs.mission.spec`)
 -------------------------------------------------------------------------
 A JSON object ``{"name": ..., "cruise_speed": ..., "climb_speed": ..., "descent_speed": ...,
 "steps": [...]}``, or a bare JSON list of steps. Each step is

@@ -1,4 +1,4 @@
-"""Mission definitions: the schema of our mission JSON (DESIGN.md §5), as frozen dataclasses.
+"""Mission definitions: the schema of our mission JSON (docs/architecture.md §5), as frozen dataclasses.
 
 A mission is a list of steps (``takeoff``, ``cruise``, ``land``, ``pickup``, ``deliver``,
 ``recharge``, ``idle``) run in order by the MISSION-phase state machine
@@ -26,7 +26,7 @@ from ..config.schema import FieldError, Ge, Gt, Le, NonEmpty
 StepType = Literal["takeoff", "cruise", "land", "pickup", "deliver", "recharge", "idle"]
 STEP_TYPES: tuple[str, ...] = get_args(StepType)
 
-# Speed caps of a mission (DESIGN.md §5 and the mission issue). Exceeding one is an error, never a
+# Speed caps of a mission (docs/architecture.md §5). Exceeding one is an error, never a
 # silent clamp; the guidance layer may still fly slower (GuidanceLimits.lim_climb_m_s etc.).
 MAX_CRUISE_SPEED_M_S = 30.0
 MAX_CLIMB_SPEED_M_S = 8.0

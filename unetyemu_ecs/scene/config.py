@@ -1,4 +1,4 @@
-"""Schema of the ``scene:`` section of a world file (DESIGN.md §8).
+"""Schema of the ``scene:`` section of a world file (docs/architecture.md §8).
 
 The frozen dataclasses below *are* the schema: their ``Annotated`` type hints are checked by
 :func:`unetyemu_ecs.config.schema.convert`, and ``__post_init__`` rejects cross-field problems with a

@@ -7,7 +7,7 @@ sensor of its kind that is due, in one vectorised pass. Outputs are ROS 2 Jazzy 
 (:mod:`unetyemu_ecs.sensors.messages`), kept in :class:`SensorOutputs`: the newest per vehicle and
 sensor for the Python API, and the list of this step's messages for publishers.
 
-Frames (DESIGN.md §3): the vehicle body is ``<vehicle>/base_link`` (FLU); a sensor sits at
+Frames (docs/architecture.md §3): the vehicle body is ``<vehicle>/base_link`` (FLU); a sensor sits at
 ``mount_xyz_m`` in it, rotated by ``mount_rpy_deg`` (roll, pitch, yaw about FLU x, y, z).
 """
 

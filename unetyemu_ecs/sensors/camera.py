@@ -1,7 +1,7 @@
 """RGB and depth cameras by ray casting the same world as the LiDAR (``sensor_msgs/Image`` + ``CameraInfo``).
 
-Why ray casting: measured on our 2-core machines (NOTES.md, and ``benchmarks/test_bench_camera.py``
-in the same run), casting one ray per pixel through Open3D's RaycastingScene is faster than PyBullet's
+Why ray casting: measured on our 2-core machines (``benchmarks/test_bench_camera.py``,
+both in the same run), casting one ray per pixel through Open3D's RaycastingScene is faster than PyBullet's
 TinyRenderer (about 2.5x at 640x480), needs no GPU or EGL, and gives depth and colour from the very
 same hits, so RGB and depth of one camera agree geometrically by construction.
 

@@ -1,7 +1,7 @@
 """ROS 2 Jazzy messages built without ROS: the message classes of ``rosbags``' Jazzy typestore.
 
 Every sensor output is one of these message objects, ready to serialise to CDR
-(:func:`serialize` / :func:`deserialize`) and publish; frames and stamps follow DESIGN.md §3 (REP-103,
+(:func:`serialize` / :func:`deserialize`) and publish; frames and stamps follow docs/architecture.md §3 (REP-103,
 REP-105). Sim time becomes a ``builtin_interfaces/Time`` with full seconds *and* nanoseconds.
 """
 

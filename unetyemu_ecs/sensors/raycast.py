@@ -3,7 +3,7 @@
 The static city is one RaycastingScene built once from the scene mesh. Moving bodies (their
 collision boxes at this step's poses) go into a small second scene rebuilt for each cast from ONE
 merged ``add_triangles`` call (Open3D cannot move geometry after commit); both are cast and the
-nearer hit wins (NOTES.md: the fastest exact approach measured).
+nearer hit wins (the fastest exact approach we measured).
 
 A sensor never sees its own vehicle: a ray that crosses the vehicle's own box starts where it
 leaves it (:func:`exit_distance_m`, exact) and that distance is added back. The static scene is cast

@@ -1,4 +1,4 @@
-"""The frame tree as ``tf2_msgs/TFMessage`` (REP-105, DESIGN.md §3).
+"""The frame tree as ``tf2_msgs/TFMessage`` (REP-105, docs/architecture.md §3).
 
 ``map -> <vehicle>/odom -> <vehicle>/base_link -> <vehicle>/<sensor link> [-> optical frame]``:
 

@@ -1,6 +1,6 @@
 """PAYLOAD_ENERGY phase: actuator-disk power per motor, battery energy, state of charge.
 
-The paper's eq. 4 (actuator-disk / momentum theory, Mahony et al. 2012) with the DESIGN.md form
+The paper's eq. 4 (actuator-disk / momentum theory, Mahony et al. 2012) in the form of docs/architecture.md §4,
 ``P_i = F_i^1.5 / (sqrt(2 rho A) eta)``, ``A = pi r^2``, ``P = sum_i P_i + P0``, evaluated on the
 thrust each motor actually applied this step. A disarmed drone has zero thrust and so draws P0.
 """

@@ -1,4 +1,4 @@
-"""MISSION phase: the mission state machine of every drone (the paper's §2.1.3, DESIGN.md §5).
+"""MISSION phase: the mission state machine of every drone (the paper's §2.1.3, docs/architecture.md §5).
 
 Steps: takeoff, cruise, land, pickup, deliver, recharge, idle, each wrapped in ``wait_before`` and
 ``wait_after``. A step turns into a route for the guidance layer, payload requests for the payload

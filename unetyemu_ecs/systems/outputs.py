@@ -1,4 +1,4 @@
-"""OUTPUTS phase: per-vehicle CSV logs (DESIGN.md §9), written at the world's log rate."""
+"""OUTPUTS phase: per-vehicle CSV logs (docs/architecture.md §9), written at the world's log rate."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""ROS 2 without a bridge node (DESIGN.md §6): the simulator is a ROS 2 node itself.
+"""ROS 2 without a bridge node (docs/architecture.md §6): the simulator is a ROS 2 node itself.
 
 Backends: ``rclpy`` (:mod:`.rclpy_backend`) when a sourced ROS 2 Jazzy is there; otherwise ``dds``
 (:mod:`.dds_backend`), which speaks the ROS 2 wire protocol over pip ``cyclonedds`` (topic

@@ -1,4 +1,4 @@
-"""Choosing and opening a ROS 2 backend (DESIGN.md §6): ``auto`` | ``rclpy`` | ``dds`` | ``off``.
+"""Choosing and opening a ROS 2 backend (docs/architecture.md §6): ``auto`` | ``rclpy`` | ``dds`` | ``off``.
 
 Both backends have the same shape: ``publish(topic, rosbags_msg)``, ``topics``, ``close()``, and
 they call ``on_message(vehicle, topic_kind, topic, msg)`` from their own thread for every sample on

@@ -1,4 +1,4 @@
-"""ROS 2 command topics -> simulation commands, validated (DESIGN.md §6).
+"""ROS 2 command topics -> simulation commands, validated (docs/architecture.md §6).
 
 ``/<v>/mission`` (std_msgs/String, mission JSON), ``/<v>/target`` (std_msgs/Float32MultiArray
 ``[x, y, z, yaw_deg, speed]``), ``/<v>/teleop`` (Float32MultiArray: drone ``[throttle, pitch,
