@@ -99,15 +99,15 @@ def test_same_world_and_seed_twice_give_identical_csv_files(tmp_path):
         assert filecmp.cmp(tmp_path / "a" / f"{name}.csv", tmp_path / "b" / f"{name}.csv", shallow=False)
 
 
-def test_plot_writes_one_png_per_drone_from_a_run(delivery_run, capsys):
+def test_plot_writes_one_png_per_vehicle_from_a_run(delivery_run, capsys):
     out, _ = delivery_run
     assert cli_main(["plot", str(out)]) == 0
-    for name in ("drone1", "drone2", "drone3"):
+    for name in ("drone1", "drone2", "drone3", "truck1", "car1"):
         png = out / f"{name}.png"
         assert png.exists() and png.stat().st_size > 20_000
-    assert not (out / "truck1.png").exists()
+    assert not (out / "package1.png").exists()
 
 
-def test_plot_of_a_directory_without_drone_logs_is_bad_input(tmp_path, capsys):
+def test_plot_of_a_directory_without_vehicle_logs_is_bad_input(tmp_path, capsys):
     assert cli_main(["plot", str(tmp_path)]) == 2
-    assert "no drone logs" in capsys.readouterr().err
+    assert "no vehicle logs" in capsys.readouterr().err
