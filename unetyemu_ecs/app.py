@@ -25,6 +25,7 @@ from .physics.car_body import CarGeometry, create_car_body
 from .physics.client import PhysicsClient
 from .physics.static_scene import build_static_scene
 from .plugins import Registry
+from .sensors.base import SensorSpec
 from .sensors.tf import TransformSystem
 from .systems.car_state import DriveMode
 from .systems.commands import InboxSystem, UnclaimedCommandSystem
@@ -38,6 +39,17 @@ from .transport.bus import Arm, CmdVel, Drive, DriveRoute, Inbox, LoadMission, S
 from .world import EcsWorld, SimServices, StepContext
 
 PACKAGE_RGBA = (0.80, 0.60, 0.30, 1.0)
+
+
+class UnknownEntityError(ValueError, KeyError):
+    """No vehicle or package of that name in this simulation (a ``ValueError``, and a ``KeyError``
+    for code that looks names up)."""
+
+    __str__ = ValueError.__str__     # not KeyError's quoted repr
+
+
+class SimulationClosedError(RuntimeError):
+    """A :class:`Simulation` was used after :meth:`Simulation.close`."""
 
 
 @dataclass(frozen=True)
@@ -57,6 +69,25 @@ class RunStats:
 
 
 ProgressFn = Callable[[float, float, float], None]   # (sim_time_s, end_time_s, wall_elapsed_s)
+
+
+MAX_TARGET_ALTITUDE_M = 1000.0   # highest target a drone is sent to [m]: far above any city, below the
+                                 # altitudes where the ground-level air and GPS models stop holding
+MAX_LAPS = 10_000                # laps of a looping car route (0 = forever)
+
+
+def _hold(what: str, hold_s: float | None) -> float | None:
+    """Check a command's hold time [s]: None (held until the next command) or a number in (0, 3600]."""
+    if hold_s is None:
+        return None
+    if not (_is_real(hold_s) and 0.0 < hold_s <= 3600.0):
+        raise ValueError(f"{what}: hold_s must be None or a number of seconds in (0, 3600], got {hold_s!r}")
+    return float(hold_s)
+
+
+def _is_real(v: object) -> bool:
+    """A real number (Python or numpy), not a bool."""
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
 
 
 class Simulation:
@@ -87,6 +118,10 @@ class Simulation:
         self.step_count = 0
         self.out_dir = Path(out_dir) if out_dir is not None else None
         self._stop_requested = False
+        self._closed = False
+        self._built = False             # construction finished (close() then writes the summary)
+        self.wall_time_s = 0.0          # wall-clock time spent in step() and run() so far [s]
+        self.interrupted = False        # a run() was stopped by Ctrl-C or stop()
         self._entities: dict[str, int] = {}
         self._log: TrajectoryLogSystem | None = None
         self.inbox = Inbox()
@@ -107,6 +142,7 @@ class Simulation:
                 self._state.prime(self._context())
                 if self._log is not None:
                     self._log.write_rows(self._context(), 0.0)
+            self._built = True
         except BaseException:
             self.close()
             raise
@@ -192,7 +228,8 @@ class Simulation:
 
         def on_message(vehicle: str, topic_kind: str, topic: str, sample: Any) -> None:   # transport thread
             try:
-                apply_command(self, vehicle, kinds[vehicle], topic_kind, sample)
+                apply_command(self, vehicle, kinds[vehicle], topic_kind, sample,
+                              hold_s=self.command_timeout_s(vehicle) or None)
             except ValueError as exc:
                 notices.put((vehicle, topic, str(exc)))
 
@@ -216,10 +253,17 @@ class Simulation:
                            self.physics, self.services)
 
     def step(self, n: int = 1) -> None:
-        """Advance ``n`` physics steps, running every phase in order each step."""
-        with self.ecs.active():
-            for _ in range(int(n)):
-                self._step_once()
+        """Advance ``n`` physics steps (an integer >= 0), running every phase in order each step."""
+        self._require_open()
+        if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n < 0:
+            raise ValueError(f"step(n): n must be an integer >= 0 (physics steps of {self.dt_s:g} s), got {n!r}")
+        wall0 = time.perf_counter()
+        try:
+            with self.ecs.active():
+                for _ in range(int(n)):
+                    self._step_once()
+        finally:
+            self.wall_time_s += time.perf_counter() - wall0
 
     def _step_once(self) -> None:
         """One physics step through every phase (the esper world must be active)."""
@@ -239,11 +283,20 @@ class Simulation:
         as fast as possible. ``progress`` is called about every ``progress_interval_s`` of wall time.
         Ctrl-C ends the run cleanly (``interrupted`` is set) and leaves the logs intact.
         """
+        self._require_open()
         if (until is None) == (duration is None):
             raise ValueError("give exactly one of until= or duration=")
-        end_s = until if until is not None else self.sim_time_s + float(duration)  # type: ignore[arg-type]
-        if rate is not None and not rate > 0:
-            raise ValueError(f"rate must be > 0 or None (as fast as possible), got {rate}")
+        given = until if until is not None else duration
+        if not _is_real(given) or not math.isfinite(given):
+            raise ValueError(f"run(): {'until' if until is not None else 'duration'} must be a finite number of "
+                             f"seconds, got {given!r}")
+        if duration is not None and duration <= 0:
+            raise ValueError(f"run(): duration must be > 0 s, got {duration!r}")
+        end_s = float(until) if until is not None else self.sim_time_s + float(duration)  # type: ignore[arg-type]
+        if end_s < self.sim_time_s:
+            raise ValueError(f"run(): until={until!r} s is before the current sim time {self.sim_time_s:g} s")
+        if rate is not None and not (_is_real(rate) and math.isfinite(rate) and rate > 0):
+            raise ValueError(f"rate must be a finite number > 0 or None (as fast as possible), got {rate!r}")
         end_step = int(round(end_s / self.dt_s))
         start_step = self.step_count
         self._stop_requested = False
@@ -265,7 +318,10 @@ class Simulation:
         except KeyboardInterrupt:
             interrupted = True
         interrupted = interrupted or self._stop_requested
-        return RunStats(self.sim_time_s, (self.step_count - start_step) * self.dt_s, time.perf_counter() - wall0,
+        wall_s = time.perf_counter() - wall0
+        self.wall_time_s += wall_s
+        self.interrupted = self.interrupted or interrupted
+        return RunStats(self.sim_time_s, (self.step_count - start_step) * self.dt_s, wall_s,
                         self.step_count - start_step, interrupted)
 
     # -- commands (applied at the next step's COMMANDS phase) ---------------------------------
@@ -290,15 +346,35 @@ class Simulation:
         a car drives there on the ground (``z`` and ``yaw_deg`` are ignored) and stops. Raises
         ``ValueError`` for non-finite values, a non-positive speed, or a package.
         """
-        if self.definition_of(name).kind == "package":
+        kind = self.definition_of(name).kind
+        if kind == "package":
             raise ValueError(f"{name!r} is a package, not a vehicle")
         values = [x, y, z, *(v for v in (yaw_deg, speed) if v is not None)]
-        if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
+        if not all(_is_real(v) and math.isfinite(v) for v in values):
             raise ValueError(f"set_target({name!r}): values must be finite numbers, got {values}")
         if speed is not None and speed <= 0:
             raise ValueError(f"set_target({name!r}): speed must be > 0, got {speed}")
+        self._check_in_world(f"set_target({name!r})", [(x, y)])
+        if kind == "quadrotor" and not 0.0 <= z <= MAX_TARGET_ALTITUDE_M:
+            raise ValueError(f"set_target({name!r}): z must be in [0, {MAX_TARGET_ALTITUDE_M:g}] m (ENU height above "
+                             f"the ground plane), got {z}")
         yaw = None if yaw_deg is None else math.radians(yaw_deg)
         self.inbox.put(SetTarget(name, (float(x), float(y), float(z)), yaw, None if speed is None else float(speed)))
+
+    def _check_in_world(self, what: str, points_xy: list[tuple[float, float]]) -> None:
+        """ENU (x, y) points [m] must lie on the world's ground (its extent), where there is something to fly over."""
+        lo, hi = self.layout.extent_min_m, self.layout.extent_max_m
+        for x, y in points_xy:
+            if not (lo[0] <= x <= hi[0] and lo[1] <= y <= hi[1]):
+                raise ValueError(f"{what}: ({x:g}, {y:g}) is outside the world, which spans x in [{lo[0]:g}, "
+                                 f"{hi[0]:g}] m and y in [{lo[1]:g}, {hi[1]:g}] m (ENU)")
+
+    def command_timeout_s(self, name: str) -> float:
+        """How long a streamed teleop/cmd_vel for vehicle ``name`` holds without a newer one [s] (0 = forever);
+        the world file's ``command_timeout_s`` (default 0.5 s)."""
+        self.definition_of(name)
+        spec = next(v for v in self.definition.spec.vehicles if v.name == name)
+        return spec.command_timeout_s
 
     def load_mission(self, name: str, mission: str | MissionSpec) -> MissionSpec:
         """Load a mission (JSON text in our or the paper's format, or a MissionSpec) and start it.
@@ -314,35 +390,46 @@ class Simulation:
         self.inbox.put(LoadMission(name, spec))
         return spec
 
-    def teleop(self, name: str, throttle: float, pitch: float, roll: float, yaw: float) -> None:
-        """Fly drone ``name`` by sticks in [-1, 1] (MANUAL mode; see the stabilizer for the mapping)."""
+    def teleop(self, name: str, throttle: float, pitch: float, roll: float, yaw: float, *,
+               hold_s: float | None = None) -> None:
+        """Fly drone ``name`` by sticks in [-1, 1] (MANUAL mode; see the stabilizer for the mapping).
+
+        The sticks are held until the next command, or for ``hold_s`` seconds of sim time, after
+        which the drone hovers where it is (commands from ROS 2 topics hold for the vehicle's
+        :meth:`command_timeout_s`).
+        """
         self._drone(name)
         stick = (throttle, pitch, roll, yaw)
-        if not all(isinstance(v, (int, float)) and math.isfinite(v) and -1.0 <= v <= 1.0 for v in stick):
+        if not all(_is_real(v) and math.isfinite(v) and -1.0 <= v <= 1.0 for v in stick):
             raise ValueError(f"teleop({name!r}): sticks must be finite numbers in [-1, 1], got {stick}")
-        self.inbox.put(Teleop(name, tuple(float(v) for v in stick)))
+        self.inbox.put(Teleop(name, tuple(float(v) for v in stick), _hold(f"teleop({name!r})", hold_s)))
 
     def arm(self, name: str, armed: bool = True) -> None:
         """Arm (hold position in AUTO mode) or disarm (motors off) drone ``name``; for a car, release
         the parking brake and hold still under speed control, or park it (brakes on)."""
         if self.definition_of(name).kind == "package":
             raise ValueError(f"{name!r} is a package, not a vehicle")
+        if not isinstance(armed, (bool, np.bool_)):
+            raise ValueError(f"arm({name!r}): armed must be True or False, got {armed!r}")
         self.inbox.put(Arm(name, bool(armed)))
 
-    def drive(self, name: str, throttle: float, brake: float, steering: float) -> None:
+    def drive(self, name: str, throttle: float, brake: float, steering: float, *,
+              hold_s: float | None = None) -> None:
         """Drive car ``name`` by hand (MANUAL): ``throttle`` in [-1, 1] (negative = reverse), ``brake``
-        in [0, 1], ``steering`` in [-1, 1] (+1 = full left; the limit shrinks with speed)."""
+        in [0, 1], ``steering`` in [-1, 1] (+1 = full left; the limit shrinks with speed). Held until
+        the next command, or for ``hold_s`` seconds of sim time (then the car brakes to a stop)."""
         self._car(name)
         cmd = (throttle, brake, steering)
-        if not (all(isinstance(v, (int, float)) and math.isfinite(v) for v in cmd)
+        if not (all(_is_real(v) and math.isfinite(v) for v in cmd)
                 and -1 <= throttle <= 1 and 0 <= brake <= 1 and -1 <= steering <= 1):
             raise ValueError(f"drive({name!r}): need throttle in [-1, 1], brake in [0, 1], steering in [-1, 1], "
                              f"got {cmd}")
-        self.inbox.put(Drive(name, float(throttle), float(brake), float(steering)))
+        self.inbox.put(Drive(name, float(throttle), float(brake), float(steering), _hold(f"drive({name!r})", hold_s)))
 
     def cmd_vel(self, name: str, forward_m_s: float, yaw_rate_rad_s: float, left_m_s: float = 0.0,
-                up_m_s: float = 0.0) -> None:
-        """Body-frame velocity command (ROS ``cmd_vel``), held until the next command.
+                up_m_s: float = 0.0, *, hold_s: float | None = None) -> None:
+        """Body-frame velocity command (ROS ``cmd_vel``), held until the next command or for ``hold_s``
+        seconds of sim time (then a drone hovers, a car brakes to a stop).
 
         ``forward_m_s`` [m/s] (negative = backwards) and ``yaw_rate_rad_s`` [rad/s], CCW positive
         (``linear.x`` and ``angular.z``). A drone switches to VELOCITY mode (cancelling a running
@@ -354,9 +441,10 @@ class Simulation:
         if kind not in ("quadrotor", "car"):
             raise ValueError(f"cmd_vel({name!r}): {name!r} is a {kind}, not a vehicle")
         values = (forward_m_s, yaw_rate_rad_s, left_m_s, up_m_s)
-        if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
+        if not all(_is_real(v) and math.isfinite(v) for v in values):
             raise ValueError(f"cmd_vel({name!r}): values must be finite numbers, got {values}")
-        self.inbox.put(CmdVel(name, float(forward_m_s), float(yaw_rate_rad_s), float(left_m_s), float(up_m_s)))
+        self.inbox.put(CmdVel(name, float(forward_m_s), float(yaw_rate_rad_s), float(left_m_s), float(up_m_s),
+                              _hold(f"cmd_vel({name!r})", hold_s)))
 
     def drive_route(self, name: str, waypoints: list[tuple[float, float]], speed: float | None = None,
                     loop: bool = False, laps: int = 0) -> None:
@@ -369,16 +457,20 @@ class Simulation:
             raise ValueError(f"drive_route({name!r}): waypoints must be (x, y) pairs of numbers") from None
         if not wp or not all(math.isfinite(v) for xy in wp for v in xy):
             raise ValueError(f"drive_route({name!r}): need at least one finite (x, y) waypoint")
+        self._check_in_world(f"drive_route({name!r})", list(wp))
         if speed is not None and not (math.isfinite(speed) and speed > 0):
             raise ValueError(f"drive_route({name!r}): speed must be a finite number > 0, got {speed}")
         if loop and len(wp) < 3:
             raise ValueError(f"drive_route({name!r}): a loop needs at least 3 waypoints, got {len(wp)}")
-        if laps < 0 or (laps and not loop):
-            raise ValueError(f"drive_route({name!r}): laps must be >= 0 and needs loop=True")
+        if not isinstance(laps, (int, np.integer)) or isinstance(laps, bool) or not 0 <= laps <= MAX_LAPS \
+                or (laps and not loop):
+            raise ValueError(f"drive_route({name!r}): laps must be an integer in [0, {MAX_LAPS}] and needs loop=True, "
+                             f"got {laps!r}")
         self.inbox.put(DriveRoute(name, wp, None if speed is None else float(speed), bool(loop), int(laps)))
 
     def mission_status(self, name: str) -> dict[str, Any] | None:
         """Status of the drone's mission (step, step type, state, reason), or None without one."""
+        self._require_open()
         with self.ecs.active():
             rt = esper.try_component(self.entity(name), MissionRuntime)
             return None if rt is None else rt.status()
@@ -397,11 +489,26 @@ class Simulation:
         """The newest message of sensor ``key`` (``imu``, ``gps``, ``lidar``...) on ``vehicle``, or None
         before its first sample. A ROS 2 Jazzy message object (see :mod:`unetyemu_ecs.sensors.messages`)."""
         self.entity(vehicle)
+        mounted = self.sensor_keys(vehicle)
+        if key not in mounted:
+            raise ValueError(f"{vehicle!r} has no sensor {key!r} (it has: {', '.join(mounted) or 'none'})")
         sample = self.services.sensors.latest.get((vehicle, key))
         return None if sample is None else sample.msg
 
+    def sensor_keys(self, vehicle: str) -> list[str]:
+        """The keys :meth:`sensor` answers for ``vehicle``: its sensors, and ``<camera>_info`` for each
+        camera's CameraInfo."""
+        keys = []
+        for key, comp in self.definition_of(vehicle).components.items():
+            if isinstance(comp, SensorSpec):
+                keys.append(key)
+                if comp.OPTICAL:
+                    keys.append(f"{key}_info")
+        return keys
+
     def transforms(self) -> tuple[Any, Any]:
         """The newest ``/tf`` and ``/tf_static`` TFMessages (None before the first step)."""
+        self._require_open()
         latest = self.services.sensors.latest
         tf, static = latest.get(("", "tf")), latest.get(("", "tf_static"))
         return (None if tf is None else tf.msg), (None if static is None else static.msg)
@@ -413,11 +520,12 @@ class Simulation:
 
     # -- queries -----------------------------------------------------------------------------
     def definition_of(self, name: str) -> EntityDefinition:
-        """The world-file definition of vehicle or package ``name``."""
+        """The world-file definition of vehicle or package ``name``; :class:`UnknownEntityError` if none."""
+        self._require_open()
         for ent in self.definition.entities:
             if ent.name == name:
                 return ent
-        raise KeyError(f"no vehicle or package named {name!r}")
+        raise UnknownEntityError(self._unknown(name))
 
     @property
     def vehicle_names(self) -> list[str]:
@@ -428,11 +536,19 @@ class Simulation:
         return [e.name for e in self.definition.packages]
 
     def entity(self, name: str) -> int:
-        """esper entity id of the vehicle or package ``name``."""
+        """esper entity id of the vehicle or package ``name``; :class:`UnknownEntityError` if none."""
+        self._require_open()
         try:
             return self._entities[name]
-        except KeyError:
-            raise KeyError(f"no vehicle or package named {name!r} (have: {', '.join(self._entities)})") from None
+        except (KeyError, TypeError):
+            raise UnknownEntityError(self._unknown(name)) from None
+
+    def _unknown(self, name: object) -> str:
+        return f"no vehicle or package named {name!r} (have: {', '.join(self._entities)})"
+
+    def _require_open(self) -> None:
+        if self._closed:
+            raise SimulationClosedError("this Simulation is closed; create a new one")
 
     def row(self, name: str) -> int:
         """Fleet row of ``name``."""
@@ -452,6 +568,7 @@ class Simulation:
 
     def component(self, name: str, component_type: type) -> Any:
         """The ``component_type`` component of entity ``name``."""
+        self._require_open()
         with self.ecs.active():
             return esper.component_for_entity(self.entity(name), component_type)
 
@@ -471,8 +588,29 @@ class Simulation:
         return dict(self._log.paths) if self._log is not None else {}
 
     # -- life cycle --------------------------------------------------------------------------
+    def summary(self) -> dict[str, Any]:
+        """The run summary so far (what ``summary.json`` holds): world, seed, sim and wall time,
+        real-time factor, every vehicle's distance, energy, impacts, final position and mission or
+        route, and every event."""
+        from .summary import build_summary
+
+        self._require_open()
+        sim_s = self.sim_time_s
+        return build_summary(self, RunStats(sim_s, sim_s, self.wall_time_s, self.step_count, self.interrupted))
+
     def close(self) -> None:
-        """Flush and close logs, disconnect PyBullet and delete the esper world; safe to call twice."""
+        """Write ``summary.json`` (with ``out_dir``), flush and close logs, disconnect PyBullet and
+        delete the esper world; safe to call twice. Any later use raises :class:`SimulationClosedError`."""
+        if self._closed:
+            return
+        if self._built and self.out_dir is not None:
+            from .summary import write_summary
+
+            try:
+                write_summary(self.summary(), self.out_dir)
+            except OSError as exc:
+                self.services.note(self.sim_time_s, "", f"cannot write summary.json: {exc}")
+        self._closed = True
         if self._log is not None:
             self._log.close()
         if self._ros2_bridge is not None:

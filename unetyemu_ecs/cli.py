@@ -7,15 +7,25 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 import time
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
+
+from .units import MAX_DURATION_S
 
 EXIT_OK = 0
 EXIT_FAILURE = 1
 EXIT_BAD_INPUT = 2
-EXIT_INTERRUPTED = 130
+EXIT_INTERRUPTED = 130          # 128 + SIGINT; SIGTERM ends with 143, SIGHUP with 129
+
+# --rate: slower than 1/100 of real time is a frozen picture, faster than 1000x is "max"
+MIN_RATE = 0.01
+MAX_RATE = 1000.0
+# signals that end a run cleanly (logs kept, summary written): Ctrl-C, and how `timeout`, `docker stop`,
+# systemd and `ros2 launch` (SIGTERM) or a closed terminal (SIGHUP) stop a process
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 def _rate(text: str) -> float:
@@ -26,8 +36,9 @@ def _rate(text: str) -> float:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a positive number or 'max', got {text!r}") from None
-    if not value > 0 or value == float("inf"):
-        raise argparse.ArgumentTypeError(f"rate must be a positive finite number or 'max', got {text!r}")
+    if not MIN_RATE <= value <= MAX_RATE:
+        raise argparse.ArgumentTypeError(f"rate must be between {MIN_RATE:g} and {MAX_RATE:g} times real time, "
+                                         f"or 'max', got {text!r}")
     return value
 
 
@@ -36,8 +47,9 @@ def _positive_seconds(text: str) -> float:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected seconds as a number, got {text!r}") from None
-    if not 0 < value < float("inf"):
-        raise argparse.ArgumentTypeError(f"duration must be a positive finite number of seconds, got {text!r}")
+    if not 0 < value <= MAX_DURATION_S:
+        raise argparse.ArgumentTypeError(f"duration must be a positive number of seconds up to {MAX_DURATION_S:g} "
+                                         f"(one week), got {text!r}")
     return value
 
 
@@ -46,13 +58,29 @@ def _seed(text: str) -> int:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"seed must be a non-negative integer, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"seed must be a non-negative integer, got {text!r}")
+    if not 0 <= value < 2**63:
+        raise argparse.ArgumentTypeError(f"seed must be an integer in [0, 2**63), got {text!r}")
     return value
+
+
+def _out_dir(text: str) -> Path:
+    if not text.strip():
+        raise argparse.ArgumentTypeError("the output directory must not be empty (omit --out for runs/<world>-<time>)")
+    return Path(text)
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("unetyemu_ecs")
+    except PackageNotFoundError:  # run from a source tree that is not installed
+        return "unknown (not installed)"
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="unetyemu", description="Simulate drones and ground vehicles in urban worlds.")
+    parser.add_argument("--version", action="version", version=f"unetyemu_ecs {_version()}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     run = sub.add_parser("run", help="load a world file and run it")
@@ -64,8 +92,9 @@ def build_parser() -> argparse.ArgumentParser:
                           "(default: 1 with --gui, max otherwise)")
     run.add_argument("--seed", type=_seed, default=None, metavar="N", help="override the world file's seed")
     run.add_argument("--gui", action="store_true", help="open the PyBullet window")
-    run.add_argument("--out", type=Path, default=None, metavar="DIR",
-                     help="output directory (default: runs/<world>-<date>-<time>)")
+    run.add_argument("--out", type=_out_dir, default=None, metavar="DIR",
+                     help="output directory, new or empty (default: runs/<world>-<date>-<time>)")
+    run.add_argument("--overwrite", action="store_true", help="allow --out to name a directory that holds files")
     run.add_argument("--quiet", action="store_true", help="no progress display")
     run.add_argument("--ros2", choices=["off", "auto", "rclpy", "dds"], default="off",
                      help="be a ROS 2 node: publish sensors, TF, /clock and mission status, take commands "
@@ -103,6 +132,44 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # the reader of our output went away (`unetyemu plugins | head`): stop quietly, as Unix tools do
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_FAILURE
+
+
+class _StopOnSignal:
+    """Turn SIGINT, SIGTERM and SIGHUP into a clean stop of the run (logs kept, summary written).
+
+    The first signal asks the simulation to stop after its current step; later ones (a second Ctrl-C
+    50 ms after the first) change nothing, so the summary is always written. The exit code is
+    128 + the first signal's number (130 for Ctrl-C), as a shell reports a process ended by it.
+    """
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+        self.sim: Any = None
+        self._old: dict[int, Any] = {}
+
+    def __enter__(self) -> _StopOnSignal:
+        for sig in STOP_SIGNALS:
+            self._old[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def _handle(self, signum: int, frame: object) -> None:
+        if self.signum is None:
+            self.signum = signum
+        if self.sim is not None:
+            self.sim.stop()
+
+    def __exit__(self, *exc: object) -> None:
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+
+    @property
+    def exit_code(self) -> int | None:
+        return None if self.signum is None else 128 + self.signum
 
 
 class _Progress:
@@ -138,14 +205,38 @@ class _Progress:
             self.stream.flush()
 
 
+def _fresh_out_dir(args: argparse.Namespace, world_name: str) -> Path | str:
+    """Where this run writes; a message (str) if ``--out`` names a directory that already holds files."""
+    if args.out is not None:
+        out = args.out
+        if out.exists() and not out.is_dir():
+            return f"--out {out}: exists and is not a directory"
+        if out.is_dir() and any(out.iterdir()) and not args.overwrite:
+            return (f"--out {out}: directory already holds files (an earlier run?); choose a new directory "
+                    "or pass --overwrite")
+        return out
+    base = Path("runs") / f"{world_name}-{time.strftime('%Y%m%d-%H%M%S')}"
+    out, k = base, 1
+    while out.exists():                     # two runs started in the same second
+        k += 1
+        out = base.with_name(f"{base.name}-{k}")
+    return out
+
+
 def cmd_run(args: argparse.Namespace) -> int:
+    with _StopOnSignal() as stop:
+        code = _run(args, stop)
+    return code
+
+
+def _run(args: argparse.Namespace, stop: _StopOnSignal) -> int:
     from .app import Simulation
     from .config.schema import ConfigError
     from .config.world_file import load_world
     from .physics.client import PhysicsError
     from .sensors.raycast import SensorUnavailable
+    from .summary import format_summary
     from .transport.ros2.dds_backend import Ros2Error, domain_from_env
-    from .summary import build_summary, format_summary, write_summary
 
     try:
         world = load_world(args.world, seed=args.seed)
@@ -157,7 +248,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     else:
         rate = None if args.rate == float("inf") else args.rate
     duration = args.duration if args.duration is not None else world.spec.world.duration_s
-    out = args.out or Path("runs") / f"{world.name}-{time.strftime('%Y%m%d-%H%M%S')}"
+    out = _fresh_out_dir(args, world.name)
+    if isinstance(out, str):
+        print(f"error: {out}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     try:
         sim = Simulation(world, gui=args.gui, out_dir=out, ros2=args.ros2)
     except (PhysicsError, SensorUnavailable, Ros2Error) as exc:
@@ -166,22 +260,29 @@ def cmd_run(args: argparse.Namespace) -> int:
     except OSError as exc:
         print(f"error: cannot write outputs to {out}: {exc}", file=sys.stderr)
         return EXIT_FAILURE
+    stop.sim = sim
+    if stop.signum is not None:             # stopped while the world was being built
+        sim.stop()
     if sim.ros2_backend != "off" and not args.quiet:
         print(f"ROS 2: node /unetyemu_sim on the {sim.ros2_backend} backend, ROS_DOMAIN_ID {domain_from_env()}"
               + (", loopback only (set CYCLONEDDS_URI for other hosts)"
                  if sim.ros2_backend == "dds" and not os.environ.get("CYCLONEDDS_URI") else ""), file=sys.stderr)
     try:
-        progress = None if args.quiet else _Progress(sys.stderr)
-        stats = sim.run(duration=duration, rate=rate, progress=progress)
-        if progress is not None:
-            progress.done()
-        summary = build_summary(sim, stats)
+        if stop.signum is None:
+            progress = None if args.quiet else _Progress(sys.stderr)
+            sim.run(duration=duration, rate=rate, progress=progress)
+            if progress is not None:
+                progress.done()
+        if stop.signum is not None:
+            sim.interrupted = True
+        summary = sim.summary()
     finally:
-        sim.close()
-    path = write_summary(summary, out)
+        sim.close()                          # writes summary.json and closes the CSV logs
     print(format_summary(summary))
-    print(f"outputs: {out} ({len(summary['logs'])} vehicle logs, {path.name})")
-    return EXIT_INTERRUPTED if stats.interrupted else EXIT_OK
+    print(f"outputs: {out} ({len(summary['logs'])} vehicle logs, summary.json)")
+    if stop.exit_code is not None:
+        return stop.exit_code
+    return EXIT_INTERRUPTED if summary["interrupted"] else EXIT_OK
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
@@ -229,6 +330,28 @@ def cmd_plot(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _preset_values(key: str) -> dict[str, dict[str, Any]]:
+    """Field -> {preset: value} for component ``key`` as the vehicle presets fill it."""
+    from .vehicles.presets import VEHICLE_TYPES, component_tables, preset, presets_for
+
+    out: dict[str, dict[str, Any]] = {}
+    for vtype in VEHICLE_TYPES:
+        for name in presets_for(vtype):
+            for field, value in component_tables(preset(vtype, name)).get(key, {}).items():
+                out.setdefault(field, {})[name] = value
+    return out
+
+
+def _default_text(default: str, from_presets: dict[str, Any] | None) -> str:
+    """How ``unetyemu plugins`` shows a field's default: its own, or what each preset gives it."""
+    if from_presets is None or default != "(required)":
+        return default
+    values = list(from_presets.values())
+    if all(v == values[0] for v in values):
+        return f"{values[0]!r} (from the vehicle preset)"
+    return "per preset: " + ", ".join(f"{name} {v!r}" for name, v in from_presets.items())
+
+
 def cmd_plugins() -> int:
     from .config.schema import describe_schema
     from .plugins import GROUPS, Registry
@@ -244,8 +367,9 @@ def cmd_plugins() -> int:
             schema = getattr(spec, "component", None) or getattr(spec, "config", None)
             summary = f" - {spec.summary}" if spec.summary else ""
             print(f"  {key:<18} [{entry.provider}]{summary}")
+            presets = _preset_values(key)
             for name, tname, default in describe_schema(schema):
-                print(f"      {name}: {tname} = {default}")
+                print(f"      {name}: {tname} = {_default_text(default, presets.get(name))}")
     if reg.failures:
         print("failed to load:")
         for (group, key), why in sorted(reg.failures.items()):

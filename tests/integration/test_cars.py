@@ -279,3 +279,22 @@ def test_a_car_driven_into_a_building_stops_at_its_wall_upright_and_the_impact_n
         assert sim.position_enu_m("c1")[0] == pytest.approx(25.0 - 2.25, abs=0.3)
         roll, pitch, _ = p.getEulerFromQuaternion(sim.attitude_enu_flu_xyzw("c1").tolist())
         assert abs(roll) < math.radians(5) and abs(pitch) < math.radians(5)
+
+
+def test_a_two_lap_route_reports_each_lap_and_the_summary_says_two_laps():
+    # GIVEN a car told to drive two laps round a 30 m square
+    square = [(30.0, 0.0), (30.0, 30.0), (0.0, 30.0), (0.0, 0.0)]
+    with Simulation(load_world_text(world(car("c1")))) as sim:
+        sim.run(duration=0.5)
+        sim.drive_route("c1", square, speed=6.0, loop=True, laps=2)
+        # WHEN it has driven them and parked
+        for _ in range(120):
+            sim.run(duration=1.0)
+            if sim.drive_status("c1")["route"] == "done":
+                break
+        # THEN it says two laps, each lap was an event, and the summary agrees
+        assert sim.drive_status("c1") == {"mode": "parked", "route": "done", "laps": 2}
+        laps = [text for _, who, text in sim.events if who == "c1" and text.startswith("route lap")]
+        assert laps == ["route lap 1 done", "route lap 2 done"]
+        car1 = next(e for e in sim.summary()["entities"] if e["name"] == "c1")
+        assert car1["drive"]["laps"] == 2

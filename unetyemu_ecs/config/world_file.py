@@ -101,6 +101,10 @@ class VehicleSpec:
     # with the ROS 2 bridge on: publish this vehicle's sensors and mission status and listen to its
     # command topics (False: none of them; its frames stay in /tf, which describes the whole world)
     ros2: bool = True
+    # a streamed teleop or cmd_vel (ROS 2 topics) lapses this long after the newest one arrived: the
+    # drone then hovers, the car brakes to a stop (0: held until the next command) [s, sim time];
+    # 0.5 s as ros2_control diff_drive_controller (cmd_vel_timeout) and PX4 offboard loss time
+    command_timeout_s: Annotated[float, Ge(0.0), Le(60.0)] = 0.5
 
     def __post_init__(self) -> None:
         known = presets_for(self.type)

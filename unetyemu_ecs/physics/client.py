@@ -6,6 +6,9 @@ body, measured with PyBullet 3.2.7); everything else in the engine works on the 
 
 from __future__ import annotations
 
+import os
+import sys
+
 import numpy as np
 import pybullet as p
 
@@ -18,6 +21,10 @@ class PhysicsClient:
     """A connected PyBullet client in DIRECT (default) or GUI mode, stepping at ``dt_s``."""
 
     def __init__(self, dt_s: float, gravity_enu_m_s2: tuple[float, float, float], gui: bool = False) -> None:
+        if gui and sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
+            # PyBullet's GUI is an X11 window; without a display it prints an X error and fails (or aborts)
+            raise PhysicsError("the PyBullet GUI needs a display and DISPLAY is not set: run without --gui "
+                               "(headless), or under a virtual display: xvfb-run -a unetyemu run ... --gui")
         mode = p.GUI if gui else p.DIRECT
         cid = p.connect(mode)
         if cid < 0:

@@ -28,7 +28,7 @@ from ..transport.bus import Arm, CmdVel, Drive, DriveRoute, SetTarget
 from ..units import GRAVITY_M_S2
 from ..world import StepContext
 from .car_state import CarPath, DriveMode, declare_car_arrays, set_path
-from .commands import claim
+from .commands import claim, lapsed_rows, warn_if_obstructed
 from .rows import gather_rows, stack_params
 
 STOPPED_SPEED_M_S = 0.2        # a route is done when the car is this slow within the arrival radius
@@ -67,6 +67,23 @@ class CarCommandSystem(esper.Processor):
             error = self._apply(ctx, ent, msg)
             if error:
                 ctx.services.note(ctx.sim_time_s, msg.vehicle, f"rejected {msg.kind} command: {error}")
+        for row in lapsed_rows(ctx):
+            ent = int(f.entity[row])
+            if esper.has_component(ent, CarDynamics):
+                self._brake_after_lapse(ctx, ent, int(row))
+
+    def _brake_after_lapse(self, ctx: StepContext, ent: int, row: int) -> None:
+        """No new teleop/cmd_vel within the command timeout: brake to a stop and hold there."""
+        f = ctx.fleet
+        f.cmd_hold_until_s[row] = np.inf
+        if f.drive_mode[row] not in (DriveMode.MANUAL, DriveMode.VELOCITY):
+            return
+        was = "teleop" if f.drive_mode[row] == DriveMode.MANUAL else "cmd_vel"
+        f.cmd_vel[row] = (0.0, 0.0)
+        _enter_mode(ctx, ent, row, DriveMode.VELOCITY)
+        name = esper.component_for_entity(ent, Identity).name
+        ctx.services.note(ctx.sim_time_s, name, f"{was} timed out (no new command within the command timeout): "
+                                                "braking to a stop")
 
     def _give_path(self, ctx: StepContext, ent: int, row: int, waypoints_xy: np.ndarray, speed: float | None,
                    loop: bool, laps: int) -> None:
@@ -82,6 +99,7 @@ class CarCommandSystem(esper.Processor):
         f = ctx.fleet
         row = f.row_of(ent)
         name = msg.vehicle
+        f.cmd_hold_until_s[row] = ctx.sim_time_s + msg.hold_s if getattr(msg, "hold_s", None) else np.inf
         if isinstance(msg, SetTarget):
             values = [*msg.pos_enu_m, *(v for v in (msg.speed_m_s,) if v is not None)]
             if not all(math.isfinite(v) for v in values):
@@ -90,6 +108,8 @@ class CarCommandSystem(esper.Processor):
                 return f"speed must be > 0, got {msg.speed_m_s}"
             self._give_path(ctx, ent, row, np.array([msg.pos_enu_m[:2]]), msg.speed_m_s, False, 0)
             ctx.services.note(ctx.sim_time_s, name, f"target set to {tuple(round(v, 2) for v in msg.pos_enu_m[:2])}")
+            pos = f.pos_enu_m[row].copy()
+            warn_if_obstructed(ctx, ent, name, pos, np.array([*msg.pos_enu_m[:2], pos[2]]))
             return ""
         if isinstance(msg, DriveRoute):
             wp = np.asarray(msg.waypoints, dtype=float)
@@ -230,11 +250,16 @@ class CarGuidanceSystem(esper.Processor):
         res = pure_pursuit(pos, route, n_points, f.path_segment[r], speeds, lead, np.zeros(len(r)))
         seg = res.segment.copy()
         for k, p in enumerate(paths):
+            laps = int(f.path_laps[r[k]])
             if p.period and seg[k] >= p.wrap_from:
                 seg[k] -= p.period
-                f.path_laps[r[k]] += 1
+                laps += 1
+            elif p.lap_ends:
+                laps = max(laps, p.laps_done(int(seg[k])))
+            if laps != f.path_laps[r[k]]:
+                f.path_laps[r[k]] = laps
                 name = esper.component_for_entity(c.entities[sel[k]], Identity).name
-                ctx.services.note(ctx.sim_time_s, name, f"route lap {int(f.path_laps[r[k]])} done")
+                ctx.services.note(ctx.sim_time_s, name, f"route lap {laps} done")
         f.path_segment[r] = seg
 
         s_along = cum[np.arange(len(r)), res.segment] + _along(pos, route, res.segment)
@@ -256,9 +281,13 @@ class CarGuidanceSystem(esper.Processor):
         for k in np.flatnonzero(done):
             ent = c.entities[sel[k]]
             name = esper.component_for_entity(ent, Identity).name
+            laps = len(paths[k].lap_ends)
+            if laps:
+                ctx.services.note(ctx.sim_time_s, name, f"route lap {laps} done")
             ctx.services.note(ctx.sim_time_s, name, "route done")
             _enter_mode(ctx, ent, int(r[k]), DriveMode.PARKED)
             f.path_done[r[k]] = True                   # after parking (which clears the path)
+            f.path_laps[r[k]] = laps
 
 
 def _pack_paths(paths: list[CarPath]) -> tuple:

@@ -33,6 +33,8 @@ class CarPath:
     cruise_m_s : [m/s] speed between corners
     period : number of segments of one lap of a never-ending loop (the points hold three laps and
         the follower steps back one period when its segment reaches ``wrap_from``), 0 otherwise
+    lap_ends : for a loop of a set number of laps, the index of the point where each lap ends (the
+        last one is the end of the route); empty otherwise
     """
 
     points_enu_m: np.ndarray
@@ -40,6 +42,11 @@ class CarPath:
     cruise_m_s: float
     period: int = 0
     wrap_from: int = 0
+    lap_ends: tuple[int, ...] = ()
+
+    def laps_done(self, segment: int) -> int:
+        """Laps of a set-laps loop completed by a car on ``segment`` (past every lap end before it)."""
+        return sum(1 for q in self.lap_ends[:-1] if segment >= q)
 
     @classmethod
     def build(cls, start_enu_m: np.ndarray, waypoints_xy_m: np.ndarray, cruise_m_s: float, max_lat_accel_m_s2: float,
@@ -52,7 +59,11 @@ class CarPath:
             xy = np.vstack([start, np.tile(wp, (reps, 1))] + ([wp[:1]] if laps > 0 else []))
         else:
             xy = np.vstack([start, wp])
-        xy = _drop_repeats(xy)
+        keep = _not_repeated(xy)
+        # lap j of a set-laps loop ends back at the first waypoint: point 1 + j*K before repeats are dropped
+        new_index = np.cumsum(keep) - 1                 # a dropped point maps onto the kept one it repeats
+        lap_ends = tuple(int(new_index[1 + j * len(wp)]) for j in range(1, laps + 1)) if loop and laps > 0 else ()
+        xy = xy[keep]
         if len(xy) < 2:                            # asked to go where it already is
             xy = np.vstack([xy, xy])
         points = np.column_stack([xy, np.zeros(len(xy))])
@@ -61,23 +72,25 @@ class CarPath:
             k = len(wp)
             speeds[-1] = speeds[-1 - k]            # never stops: the far end is just another corner
             return cls(points, speeds, float(cruise_m_s), period=k, wrap_from=len(xy) - 1 - k)
-        return cls(points, speeds, float(cruise_m_s))
+        return cls(points, speeds, float(cruise_m_s), lap_ends=lap_ends)
 
 
-def _drop_repeats(xy: np.ndarray) -> np.ndarray:
+def _not_repeated(xy: np.ndarray) -> np.ndarray:
+    """Mask of the points that differ from the one before them."""
     keep = np.ones(len(xy), dtype=bool)
     keep[1:] = np.linalg.norm(np.diff(xy, axis=0), axis=1) > 1e-6
-    return xy[keep]
+    return keep
 
 
 # name -> (tail shape, dtype, fill)
 CAR_ARRAYS: dict[str, tuple[tuple[int, ...], type, float]] = {
     "drive_mode": ((), np.int8, 0),
+    "cmd_hold_until_s": ((), np.float64, np.inf),     # sim time a streamed teleop/cmd_vel lapses (inf: held)
     "drive_cmd": ((3,), np.float64, 0.0),            # teleop [throttle, brake, steering]
     "cmd_vel": ((2,), np.float64, 0.0),              # [forward m/s, yaw rate rad/s]
     "path_stamp": ((), np.int64, 0),
     "path_segment": ((), np.int64, 0),
-    "path_laps": ((), np.int64, 0),                  # laps completed on a never-ending loop
+    "path_laps": ((), np.int64, 0),                  # laps of a loop completed (kept when the route ends)
     "path_done": ((), np.bool_, False),
     "car_speed_sp_m_s": ((), np.float64, 0.0),
     "car_steer_sp_rad": ((), np.float64, 0.0),       # bicycle-model front angle asked by guidance

@@ -15,10 +15,11 @@ import math
 import esper
 import numpy as np
 
-from ..components.body import FleetSlot, Identity
+from ..components.body import FleetSlot, Identity, RigidBody
 from ..components.flight import GuidanceLimits, TeleopScript
 from ..components.mission import MissionRuntime
 from ..phases import Phase
+from ..scene.obstacles import buildings_on_segment
 from ..transport.bus import Arm, CmdVel, LoadMission, SetTarget, Teleop
 from ..world import StepContext
 from .flight_state import FlightMode, Route, declare_flight_arrays, set_route
@@ -85,9 +86,14 @@ class FlightCommandSystem(esper.Processor):
         f = ctx.fleet
         declare_flight_arrays(f)
         for ent, msg in claim(ctx, GuidanceLimits):
+            self._stop_script(ctx, ent, msg)
             error = self._apply(ctx, ent, msg)
             if error:
                 ctx.services.note(ctx.sim_time_s, msg.vehicle, f"rejected {msg.kind} command: {error}")
+        for row in lapsed_rows(ctx):
+            ent = int(f.entity[row])
+            if esper.has_component(ent, GuidanceLimits):
+                self._hold_after_lapse(ctx, ent, row)
         for ent, (slot, script) in esper.get_components(FleetSlot, TeleopScript):
             k = self._script_next.get(ent, 0)
             frames = script.keyframes
@@ -101,10 +107,31 @@ class FlightCommandSystem(esper.Processor):
                 _cancel_mission(ctx, ent, "teleop")
             self._script_next[ent] = k
 
+    def _stop_script(self, ctx: StepContext, ent: int, msg: object) -> None:
+        """A live command (API, ROS 2) takes the drone over from its world file's teleop_script for good."""
+        script = esper.try_component(ent, TeleopScript)
+        if script is not None and self._script_next.get(ent, 0) < len(script.keyframes):
+            self._script_next[ent] = len(script.keyframes)
+            ctx.services.note(ctx.sim_time_s, msg.vehicle, f"teleop_script stopped: a live {msg.kind} command "
+                                                           "took over")
+
+    def _hold_after_lapse(self, ctx: StepContext, ent: int, row: int) -> None:
+        """No new teleop/cmd_vel within the command timeout: hover where the drone is."""
+        f = ctx.fleet
+        f.cmd_hold_until_s[row] = np.inf
+        if f.flight_mode[row] not in (FlightMode.MANUAL, FlightMode.VELOCITY):
+            return
+        was = "teleop" if f.flight_mode[row] == FlightMode.MANUAL else "cmd_vel"
+        _hold_position(f, row)
+        name = esper.component_for_entity(ent, Identity).name
+        ctx.services.note(ctx.sim_time_s, name, f"{was} timed out (no new command within the command timeout): "
+                                                "holding position")
+
     def _apply(self, ctx: StepContext, ent: int, msg: object) -> str:
         f = ctx.fleet
         row = esper.component_for_entity(ent, FleetSlot).row
         lim = esper.component_for_entity(ent, GuidanceLimits)
+        f.cmd_hold_until_s[row] = ctx.sim_time_s + msg.hold_s if getattr(msg, "hold_s", None) else np.inf
         if isinstance(msg, SetTarget):
             values = [*msg.pos_enu_m, *(v for v in (msg.yaw_rad, msg.speed_m_s) if v is not None)]
             if not all(math.isfinite(v) for v in values):
@@ -119,6 +146,7 @@ class FlightCommandSystem(esper.Processor):
             f.flight_mode[row] = FlightMode.AUTO
             set_route(f, row, Route(np.array([pos, msg.pos_enu_m], dtype=float), np.array([sp, sp]), float(yaw)))
             ctx.services.note(ctx.sim_time_s, msg.vehicle, f"target set to {tuple(round(v, 2) for v in msg.pos_enu_m)}")
+            warn_if_obstructed(ctx, ent, msg.vehicle, pos, np.asarray(msg.pos_enu_m, dtype=float))
             return ""
         if isinstance(msg, Teleop):
             if len(msg.stick) != 4 or not all(math.isfinite(v) and -1.0 <= v <= 1.0 for v in msg.stick):
@@ -149,16 +177,43 @@ class FlightCommandSystem(esper.Processor):
         if isinstance(msg, Arm):
             if msg.armed:
                 if f.flight_mode[row] == FlightMode.DISARMED:
-                    f.flight_mode[row] = FlightMode.AUTO
-                    pos = f.pos_enu_m[row].copy()
-                    sp = np.ones(3)
-                    set_route(f, row, Route(np.array([pos, pos]), np.array([sp, sp]), np.nan))
+                    _hold_position(f, row)
             else:
                 _cancel_mission(ctx, ent, "disarm")
                 f.flight_mode[row] = FlightMode.DISARMED
                 set_route(f, row, None)
             return ""
         return f"unsupported command {type(msg).__name__}"
+
+
+def _hold_position(f, row: int) -> None:
+    """AUTO mode on a route that starts and ends where the drone is: hover (or stay) there."""
+    f.flight_mode[row] = FlightMode.AUTO
+    pos = f.pos_enu_m[row].copy()
+    sp = np.ones(3)
+    set_route(f, row, Route(np.array([pos, pos]), np.array([sp, sp]), np.nan))
+
+
+def lapsed_rows(ctx: StepContext) -> np.ndarray:
+    """Rows whose streamed teleop/cmd_vel command has lapsed this step (``cmd_hold_until_s`` passed)."""
+    f = ctx.fleet
+    held = getattr(f, "cmd_hold_until_s", None)
+    if held is None:
+        return np.empty(0, dtype=np.intp)
+    return np.flatnonzero(held[:f.capacity] <= ctx.sim_time_s + 1e-9)
+
+
+def warn_if_obstructed(ctx: StepContext, ent: int, vehicle: str, start_enu_m: np.ndarray,
+                       end_enu_m: np.ndarray) -> None:
+    """Say so (a warning event) when the straight line from ``start`` to a commanded target runs
+    through a building; the command is still flown, as commanded."""
+    half = esper.component_for_entity(ent, RigidBody).half_extents_m
+    hits = buildings_on_segment(ctx.services.layout, start_enu_m, end_enu_m, clearance_m=float(np.max(half[:2])))
+    if hits:
+        x, y, z = hits[0].entry_enu_m
+        ctx.services.note(ctx.sim_time_s, vehicle, f"warning: the straight path to the target crosses "
+                                                   f"{hits[0].name} at ENU ({x:.1f}, {y:.1f}, {z:.1f}) m, "
+                                                   f"{hits[0].distance_m:.0f} m ahead")
 
 
 def _cancel_mission(ctx: StepContext, ent: int, why: str) -> None:

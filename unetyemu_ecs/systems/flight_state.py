@@ -65,6 +65,7 @@ class Route:
 # name -> (tail shape, dtype, fill)
 FLIGHT_ARRAYS: dict[str, tuple[tuple[int, ...], type, float]] = {
     "flight_mode": ((), np.int8, 0),
+    "cmd_hold_until_s": ((), np.float64, np.inf),     # sim time a streamed teleop/cmd_vel lapses (inf: held)
     "motors_enabled": ((), np.bool_, True),
     "stick": ((4,), np.float64, 0.0),                 # [throttle, pitch, roll, yaw] in [-1, 1]
     "route_stamp": ((), np.int64, 0),                 # bumped whenever `route` changes

@@ -4,6 +4,11 @@ Any producer (the Python API, the ROS 2 bridge, MAVLink endpoints, teleop) puts 
 :class:`Inbox`; the COMMANDS phase drains it once per step, keeping for each vehicle and kind only
 the newest message (a teleop stream at 50 Hz must not queue up). Messages use the engine's units and
 frames (ENU metres, radians) and name the vehicle; they are validated again when applied.
+
+Streamed commands (teleop sticks, cmd_vel) carry ``hold_s``: a command from a stream (ROS 2
+topics) lapses when no newer one arrives within the vehicle's command timeout, and the vehicle
+then holds (a drone hovers where it is, a car brakes to a stop), as robot drivers do when their
+publisher goes quiet. ``None`` holds the command until the next one (Python API calls).
 """
 
 from __future__ import annotations
@@ -39,6 +44,7 @@ class Teleop:
 
     vehicle: str
     stick: tuple[float, float, float, float]
+    hold_s: float | None = None      # lapses this long [s, sim time] after it is applied (None: held)
     kind: str = "teleop"
 
 
@@ -60,6 +66,7 @@ class Drive:
     throttle: float
     brake: float
     steering: float
+    hold_s: float | None = None      # lapses this long [s, sim time] after it is applied (None: held)
     kind: str = "teleop"
 
 
@@ -74,6 +81,7 @@ class CmdVel:
     yaw_rate_rad_s: float
     left_m_s: float = 0.0
     up_m_s: float = 0.0
+    hold_s: float | None = None      # lapses this long [s, sim time] after it is applied (None: held)
     kind: str = "cmd_vel"
 
 

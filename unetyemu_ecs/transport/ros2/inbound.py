@@ -27,10 +27,13 @@ def _finite(values: list[float], what: str) -> list[float]:
     return out
 
 
-def apply_command(sim: Any, vehicle: str, kind: str, topic_kind: str, msg: Any) -> None:
+def apply_command(sim: Any, vehicle: str, kind: str, topic_kind: str, msg: Any,
+                  hold_s: float | None = None) -> None:
     """Turn one inbound message (a cyclonedds struct of the topic's type) into a command of ``sim``.
 
-    ``kind`` is the vehicle's kind (``quadrotor`` or ``car``). Raises ``ValueError`` with the reason.
+    ``kind`` is the vehicle's kind (``quadrotor`` or ``car``); teleop and cmd_vel lapse ``hold_s``
+    seconds after they arrive unless a newer one follows (the vehicle's command timeout; None: held).
+    Raises ``ValueError`` with the reason.
     """
     try:
         if topic_kind == "mission":
@@ -50,18 +53,18 @@ def apply_command(sim: Any, vehicle: str, kind: str, topic_kind: str, msg: Any) 
             if kind == "quadrotor":
                 if len(values) != 4:
                     raise ValueError(f"drone teleop needs [throttle, pitch, roll, yaw] (4 values), got {len(values)}")
-                sim.teleop(vehicle, *values)                  # the API checks finite and in range
+                sim.teleop(vehicle, *values, hold_s=hold_s)                  # the API checks finite and in range
             else:
                 if len(values) != 3:
                     raise ValueError(f"car teleop needs [throttle, brake, steering] (3 values), got {len(values)}")
-                sim.drive(vehicle, *values)
+                sim.drive(vehicle, *values, hold_s=hold_s)
         elif topic_kind == "cmd_vel":
             lin = _finite([msg.linear.x, msg.linear.y, msg.linear.z], "cmd_vel linear")
             ang = _finite([msg.angular.x, msg.angular.y, msg.angular.z], "cmd_vel angular")
             if kind == "quadrotor":
-                sim.cmd_vel(vehicle, lin[0], ang[2], left_m_s=lin[1], up_m_s=lin[2])
+                sim.cmd_vel(vehicle, lin[0], ang[2], left_m_s=lin[1], up_m_s=lin[2], hold_s=hold_s)
             else:
-                sim.cmd_vel(vehicle, lin[0], ang[2])
+                sim.cmd_vel(vehicle, lin[0], ang[2], hold_s=hold_s)
         else:
             raise ValueError(f"unknown command topic {topic_kind!r}")
     except ConfigError as exc:
