@@ -82,7 +82,7 @@ def test_run_refuses_a_bad_world_without_starting(tmp_path):
     bad.write_text("world: {physics_hz: 0}\n")
     res = unetyemu("run", str(bad), "--out", str(tmp_path / "out"))
     assert res.returncode == 2
-    assert "world.physics_hz: must be > 0" in res.stderr
+    assert "world.physics_hz: must be >= 50" in res.stderr
     assert not (tmp_path / "out").exists()
 
 

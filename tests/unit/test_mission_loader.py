@@ -302,8 +302,8 @@ def test_mission_to_json_round_trips(text):
 
 
 def test_mission_to_json_round_trips_numbers_json_writes_in_exponent_form():
-    # GIVEN coordinates that JSON writes as 1e-07 and 1e+20 (YAML 1.1 would read those as strings)
-    spec = MissionSpec(steps=[MissionStep(type="cruise", waypoints=[Waypoint(x=1e-7, y=1e20, z=3.0)])])
+    # GIVEN coordinates that JSON writes as 1e-07 and -1e-05 (YAML 1.1 would read those as strings)
+    spec = MissionSpec(steps=[MissionStep(type="cruise", waypoints=[Waypoint(x=1e-7, y=-1e-5, z=3.0)])])
     # THEN they come back as the same numbers
     assert parse_mission(mission_to_json(spec)) == spec
 

@@ -58,7 +58,7 @@ def test_negative_mass_is_reported_with_line_and_key_path():
 
 def test_zero_physics_rate_is_reported():
     assert _issues(GOOD.replace("physics_hz: 240", "physics_hz: 0")) == [
-        "w.yaml:3: world.physics_hz: must be > 0, got 0.0"]
+        "w.yaml:3: world.physics_hz: must be >= 50, got 0.0"]
 
 
 def test_unknown_key_lists_the_allowed_ones():
@@ -81,7 +81,7 @@ def test_duplicate_vehicle_names_are_reported_at_the_second_one():
 def test_unknown_preset_and_bad_rate_are_reported_together():
     text = GOOD.replace("preset: small", "preset: huge").replace("physics_hz: 240", "physics_hz: -1")
     assert _issues(text) == [
-        "w.yaml:3: world.physics_hz: must be > 0, got -1.0",
+        "w.yaml:3: world.physics_hz: must be >= 50, got -1.0",
         "w.yaml:15: vehicles[0].preset: unknown quadrotor preset 'huge' (expected one of: large, medium, small)"]
 
 

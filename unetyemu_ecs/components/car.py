@@ -11,29 +11,33 @@ from typing import Annotated, Any
 
 import numpy as np
 
-from ..config.schema import FieldError, Ge, Gt, Le, Lt, NonEmpty
+from ..config.limits import MAX_WAYPOINTS, XM
+from ..config.schema import FieldError, Ge, Gt, Le, Lt, MaxLen, NonEmpty
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class CarDynamics:
     """Chassis, wheels, suspension, drive and brakes of a car (world-file key ``car_dynamics``)."""
 
-    wheelbase_m: Annotated[float, Gt(0.0)]
-    track_m: Annotated[float, Gt(0.0)]
-    wheel_radius_m: Annotated[float, Gt(0.0)]
-    wheel_width_m: Annotated[float, Gt(0.0)]
-    wheel_mass_kg: Annotated[float, Gt(0.0)]
-    max_drive_torque_n_m: Annotated[float, Gt(0.0)]      # total at the rear axle, shared by the two wheels
-    max_brake_torque_n_m: Annotated[float, Gt(0.0)]      # per wheel
+    # Ranges: road vehicles up to a mining truck (wheelbase 20 m, track 5 m, 2 m wheels of 1 t);
+    # torques within 100 kN m; 100 m/s is beyond any road car's top speed; a steering rack slews a few
+    # hundred deg/s; springs within 10 MN/m, dampers 1 MN s/m, travel 1 m; tyres grip below ~2 (slicks)
+    wheelbase_m: Annotated[float, Gt(0.0), Le(20.0)]
+    track_m: Annotated[float, Gt(0.0), Le(5.0)]
+    wheel_radius_m: Annotated[float, Gt(0.0), Le(2.0)]
+    wheel_width_m: Annotated[float, Gt(0.0), Le(2.0)]
+    wheel_mass_kg: Annotated[float, Gt(0.0), Le(1_000.0)]
+    max_drive_torque_n_m: Annotated[float, Gt(0.0), Le(1e5)]      # total at the rear axle, shared by the two wheels
+    max_brake_torque_n_m: Annotated[float, Gt(0.0), Le(1e5)]      # per wheel
     rolling_resistance_coeff: Annotated[float, Ge(0.0), Lt(1.0)]   # C_rr: drag torque C_rr m g r / 4 per wheel
-    top_speed_m_s: Annotated[float, Gt(0.0)]
+    top_speed_m_s: Annotated[float, Gt(0.0), Le(100.0)]
     max_steer_deg: Annotated[float, Gt(0.0), Lt(60.0)]
     steer_scale_at_50_m_s: Annotated[float, Gt(0.0), Le(1.0)]     # steering limit scale at 50 m/s
-    max_steer_rate_deg_s: Annotated[float, Gt(0.0)]      # steering actuator slew rate (front wheels)
-    suspension_stiffness_n_m: Annotated[float, Gt(0.0)]  # per wheel [N/m]
-    suspension_damping_n_s_m: Annotated[float, Ge(0.0)]  # per wheel [N s/m]
-    suspension_travel_m: Annotated[float, Gt(0.0)]       # +/- from the static rest position
-    tyre_friction: Annotated[float, Gt(0.0)]             # times the surface's (road 0.9)
+    max_steer_rate_deg_s: Annotated[float, Gt(0.0), Le(1_000.0)]  # steering actuator slew rate (front wheels)
+    suspension_stiffness_n_m: Annotated[float, Gt(0.0), Le(1e7)]  # per wheel [N/m]
+    suspension_damping_n_s_m: Annotated[float, Ge(0.0), Le(1e6)]  # per wheel [N s/m]
+    suspension_travel_m: Annotated[float, Gt(0.0), Le(1.0)]       # +/- from the static rest position
+    tyre_friction: Annotated[float, Gt(0.0), Le(5.0)]             # times the surface's (road 0.9)
 
     def __post_init__(self) -> None:
         if np.any(np.asarray(self.wheel_width_m) >= np.asarray(self.track_m)):   # arrays when stacked per fleet
@@ -45,8 +49,8 @@ class CarDynamics:
 class RouteWaypoint:
     """A point of a car route, ENU metres on the ground."""
 
-    x: float
-    y: float
+    x: XM       # within the world's extent (config.limits.MAX_XY_M)
+    y: XM
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -55,10 +59,10 @@ class CarRoute:
     at ``speed_m_s`` (slower in corners), stopping at the last one or, with ``loop``, going round
     for ``laps`` laps (0 = forever)."""
 
-    waypoints: Annotated[list[RouteWaypoint], NonEmpty()]
+    waypoints: Annotated[list[RouteWaypoint], NonEmpty(), MaxLen(MAX_WAYPOINTS)]
     speed_m_s: Annotated[float, Gt(0.0), Le(40.0)] | None = None     # None: the controller's cruise speed
     loop: bool = False
-    laps: Annotated[int, Ge(0)] = 0
+    laps: Annotated[int, Ge(0), Le(10_000)] = 0   # 10 000 laps of even a 100 m block take 12 days at 1 m/s
 
     def __post_init__(self) -> None:
         if self.loop and len(self.waypoints) < 3:

@@ -88,6 +88,19 @@ class Ordered:
 
 
 @dataclass(frozen=True, slots=True)
+class MaxLen:
+    """A string or container must have at most ``n`` elements (checked before its elements are)."""
+
+    n: int
+
+    def check(self, v: Any) -> str | None:
+        if len(v) <= self.n:
+            return None
+        what = "characters" if isinstance(v, str) else "elements"
+        return f"must have at most {self.n} {what}, got {len(v)}"
+
+
+@dataclass(frozen=True, slots=True)
 class NonEmpty:
     """A string or container must not be empty."""
 
@@ -228,6 +241,12 @@ def convert(value: Any, tp: Any, path: Path, src: SourceMap, issues: list[Issue]
 
     if origin is Annotated:
         base, *markers = get_args(tp)
+        for marker in markers:          # a list too long is refused before its elements are converted
+            if isinstance(marker, MaxLen) and isinstance(value, (str, list, dict)):
+                msg = marker.check(value)
+                if msg is not None:
+                    issues.append(src.issue(path, msg))
+                    return INVALID
         out = convert(value, base, path, src, issues)
         if out is INVALID:
             return INVALID
@@ -267,10 +286,15 @@ def convert(value: Any, tp: Any, path: Path, src: SourceMap, issues: list[Issue]
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             issues.append(src.issue(path, f"expected a number, got {_describe(value)}"))
             return INVALID
-        if not math.isfinite(value):
+        try:
+            out_f = float(value)
+        except OverflowError:       # an integer beyond 1.8e308
+            issues.append(src.issue(path, "must be a finite number, got an integer beyond 1.8e308"))
+            return INVALID
+        if not math.isfinite(out_f):
             issues.append(src.issue(path, f"must be a finite number, got {value!r}"))
             return INVALID
-        return float(value)
+        return out_f
 
     if tp is int:
         if isinstance(value, bool) or not isinstance(value, int):
@@ -407,6 +431,7 @@ __all__ = [
     "Issue",
     "Le",
     "Lt",
+    "MaxLen",
     "NonEmpty",
     "Ordered",
     "SourceMap",

@@ -20,16 +20,25 @@ from typing import Annotated, Any, Literal
 
 import numpy as np
 
+from ..mission.refs import mission_reference_issues
+from ..mission.spec import MissionSpec
 from ..plugins import GROUP_SENSORS, Registry
 from ..scene.config import SceneConfig
 from ..sensors.base import SensorSpec
 from ..scene.layout import build_layout
-from ..scene.primitives import SceneLayout
+from ..scene.primitives import SceneLayout, box_overlaps_box
 from ..vehicles.presets import component_tables, preset, presets_for
-from .schema import INVALID, ConfigError, Each, FieldError, Ge, Gt, Issue, Le, NonEmpty, Path, SourceMap, convert
-from .yaml_source import load_yaml_file, load_yaml_text
+from .limits import (MAX_DURATION_S, MAX_OFFSET_M, MAX_PACKAGES, MAX_PHYSICS_HZ, MAX_VEHICLES, MAX_WORLD_FILE_BYTES,
+                     MAX_WORLD_NESTING, MAX_WORLD_NODES, MIN_PHYSICS_HZ, XYZ, Deg, Name)
+from .schema import INVALID, ConfigError, FieldError, Ge, Gt, Issue, Le, MaxLen, Path, SourceMap, convert
+from .yaml_source import load_yaml_file, load_yaml_text, prescan
 
 _NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+
+Gravity = Annotated[float, Ge(-30.0), Le(30.0)]                # [m/s^2]
+Offset = Annotated[float, Ge(-MAX_OFFSET_M), Le(MAX_OFFSET_M)]   # [m]
+PackageEdge = Annotated[float, Ge(0.02), Le(10.0)]             # [m]
+SPAWN_TOLERANCE_M = 0.01   # bodies may touch (or sink this far into) what they stand on at t = 0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -38,20 +47,25 @@ class OriginSpec:
 
     lat_deg: Annotated[float, Ge(-90.0), Le(90.0)]
     lon_deg: Annotated[float, Ge(-180.0), Le(180.0)]
-    alt_m: float = 0.0
+    # WGS84 height of the ground plane: from the Dead Sea shore (-430 m) to above Everest (8849 m)
+    alt_m: Annotated[float, Ge(-500.0), Le(9_000.0)] = 0.0
 
 
 @dataclass(frozen=True, kw_only=True)
 class WorldSection:
     """Global settings of a world."""
 
-    name: Annotated[str, NonEmpty()] = "world"
-    physics_hz: Annotated[float, Gt(0.0), Le(10_000.0)] = 240.0
-    gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.81)   # ENU
-    seed: Annotated[int, Ge(0)] = 0
+    name: Name = "world"
+    # physics below 50 Hz destabilises contacts and the rate loops; above 10 kHz only costs time
+    physics_hz: Annotated[float, Ge(MIN_PHYSICS_HZ), Le(MAX_PHYSICS_HZ)] = 240.0
+    # ENU; each component within 30 m/s^2 covers every solar-system surface (Jupiter 24.8)
+    gravity_m_s2: tuple[Gravity, Gravity, Gravity] = (0.0, 0.0, -9.81)
+    seed: Annotated[int, Ge(0), Le(2**63 - 1)] = 0      # fits an int64 (CSV, summary, ROS 2 parameter)
     origin: OriginSpec = OriginSpec(lat_deg=40.4168, lon_deg=-3.7038, alt_m=650.0)  # Madrid
-    duration_s: Annotated[float, Gt(0.0)] = 60.0    # default length of `unetyemu run`
-    log_hz: Annotated[float, Gt(0.0)] = 10.0        # CSV log rate
+    # default length of `unetyemu run`: at most one week of simulated time
+    duration_s: Annotated[float, Gt(0.0), Le(MAX_DURATION_S)] = 60.0
+    # CSV log rate: one row per 100 s at least (fewer says nothing), 1 kHz at most (CSV growth)
+    log_hz: Annotated[float, Ge(0.01), Le(1_000.0)] = 10.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -62,11 +76,11 @@ class PoseSpec:
     surface (its bottom on the top of the pad), shifted by ``offset_m`` (ENU, metres).
     """
 
-    position_m: tuple[float, float, float] | None = None
-    pad: str | None = None
-    parking: str | None = None
-    offset_m: tuple[float, float] = (0.0, 0.0)
-    yaw_deg: float | None = None   # ENU, 0 = east, CCW; default 0, or the parking spot's heading
+    position_m: XYZ | None = None   # within 20 km of the origin, z in [-100, 10 000] m (config.limits)
+    pad: Name | None = None
+    parking: Name | None = None
+    offset_m: tuple[Offset, Offset] = (0.0, 0.0)   # within 50 m of the pad or spot: it stands there
+    yaw_deg: Deg | None = None   # ENU, 0 = east, CCW; default 0, or the parking spot's heading
 
     def __post_init__(self) -> None:
         given = [k for k in ("position_m", "pad", "parking") if getattr(self, k) is not None]
@@ -79,9 +93,10 @@ class PoseSpec:
 class PackageSpec:
     """A box that drones can pick up."""
 
-    name: Annotated[str, NonEmpty()]
-    mass_kg: Annotated[float, Gt(0.0)]
-    size_m: Annotated[tuple[float, float, float], Each(Gt(0.0))] = (0.4, 0.4, 0.3)
+    name: Name
+    mass_kg: Annotated[float, Gt(0.0), Le(1_000.0)]   # a parcel: a tonne is a pallet already
+    # edges from 2 cm (half of Bullet's 4 cm collision margin each side) to a 10 m container
+    size_m: tuple[PackageEdge, PackageEdge, PackageEdge] = (0.4, 0.4, 0.3)
     pose: PoseSpec
     components: dict[str, Any] = field(default_factory=dict)
 
@@ -90,20 +105,20 @@ class PackageSpec:
 class VehicleSpec:
     """A drone or a ground vehicle."""
 
-    name: Annotated[str, NonEmpty()]
+    name: Name
     type: Literal["quadrotor", "car"]
-    preset: str = "medium"
+    preset: Name = "medium"
     pose: PoseSpec
     components: dict[str, Any] = field(default_factory=dict)
     # sensors attached with their defaults: "all" (every installed sensor that fits the vehicle) or
     # a list of sensor keys; a sensor also under `components` keeps the parameters given there
-    sensors: Literal["all"] | list[Annotated[str, NonEmpty()]] = field(default_factory=list)
+    sensors: Literal["all"] | Annotated[list[Name], MaxLen(64)] = field(default_factory=list)
     # with the ROS 2 bridge on: publish this vehicle's sensors and mission status and listen to its
     # command topics (False: none of them; its frames stay in /tf, which describes the whole world)
     ros2: bool = True
     # a streamed teleop or cmd_vel (ROS 2 topics) lapses this long after the newest one arrived: the
     # drone then hovers, the car brakes to a stop (0: held until the next command) [s, sim time];
-    # 0.5 s as ros2_control diff_drive_controller (cmd_vel_timeout) and PX4 offboard loss time
+    # 0.5 s as ros2_control's diff_drive_controller (cmd_vel_timeout) and PX4's offboard loss time
     command_timeout_s: Annotated[float, Ge(0.0), Le(60.0)] = 0.5
 
     def __post_init__(self) -> None:
@@ -119,9 +134,9 @@ class WorldFile:
 
     world: WorldSection = field(default_factory=WorldSection)
     scene: SceneConfig = field(default_factory=SceneConfig)
-    packages: list[PackageSpec] = field(default_factory=list)
-    vehicles: list[VehicleSpec] = field(default_factory=list)
-    systems: dict[str, Any] = field(default_factory=dict)
+    packages: Annotated[list[PackageSpec], MaxLen(MAX_PACKAGES)] = field(default_factory=list)
+    vehicles: Annotated[list[VehicleSpec], MaxLen(MAX_VEHICLES)] = field(default_factory=list)
+    systems: dict[Name, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -164,14 +179,23 @@ class WorldDefinition:
 
 
 def load_world(path: str | FsPath, registry: Registry | None = None, seed: int | None = None) -> WorldDefinition:
-    """Read and validate a world file; raise :class:`ConfigError` listing every problem."""
-    doc, src = load_yaml_file(path)
+    """Read and validate a world file; raise :class:`ConfigError` listing every problem.
+
+    The file is read bounded (``config.limits``: at most 1 MiB, a regular file, 32 levels of
+    nesting, 200 000 values after expanding aliases) before it is parsed.
+    """
+    doc, src = load_yaml_file(path, MAX_WORLD_FILE_BYTES, max_depth=MAX_WORLD_NESTING, max_nodes=MAX_WORLD_NODES,
+                              what="world file")
     return resolve_world(doc, src, registry, seed)
 
 
 def load_world_text(text: str, file: str = "<string>", registry: Registry | None = None,
                     seed: int | None = None) -> WorldDefinition:
     """Like :func:`load_world` for YAML given as a string."""
+    if len(text) > MAX_WORLD_FILE_BYTES:
+        raise ConfigError([Issue(file, None, (), f"is larger than {MAX_WORLD_FILE_BYTES} characters "
+                                                 "(the limit of a world file)")])
+    prescan(text, file, max_depth=MAX_WORLD_NESTING, max_nodes=MAX_WORLD_NODES, what="world file")
     doc, src = load_yaml_text(text, file)
     return resolve_world(doc, src, registry, seed)
 
@@ -179,9 +203,15 @@ def load_world_text(text: str, file: str = "<string>", registry: Registry | None
 def resolve_world(doc: Any, src: SourceMap, registry: Registry | None = None,
                   seed: int | None = None) -> WorldDefinition:
     """Validate a parsed document and resolve it into a :class:`WorldDefinition`."""
+    if doc is None or doc == {}:
+        raise ConfigError([src.issue((), "the world file is empty (expected the sections world, scene, "
+                                         "packages, vehicles)")])
     registry = registry if registry is not None else Registry.discover()
     issues: list[Issue] = []
-    spec = convert(doc, WorldFile, (), src, issues)
+    try:
+        spec = convert(doc, WorldFile, (), src, issues)
+    except RecursionError:     # prescan bounds the nesting; this guards documents built in Python
+        raise ConfigError([src.issue((), "the world is nested too deeply")]) from None
     if spec is INVALID:
         raise ConfigError(issues)
     if seed is not None:
@@ -208,6 +238,7 @@ def resolve_world(doc: Any, src: SourceMap, registry: Registry | None = None,
             systems[key] = cfg
 
     entities: list[EntityDefinition] = []
+    where: list[Path] = []                      # (group, index) of each entity
     if layout is not None:
         counts: dict[str, int] = {}
         for group, items in (("vehicles", spec.vehicles), ("packages", spec.packages)):
@@ -215,10 +246,75 @@ def resolve_world(doc: Any, src: SourceMap, registry: Registry | None = None,
                 ent = _resolve_entity(group, i, item, layout, registry, src, issues, counts)
                 if ent is not None:
                     entities.append(ent)
+                    where.append((group, i))
+        _check_mission_references(entities, where, layout, [p.name for p in spec.packages], src, issues)
+        _check_spawn_clearance(entities, where, layout, src, issues)
     if issues:
         raise ConfigError(issues)
     assert layout is not None
     return WorldDefinition(src.file, spec, layout, tuple(entities), systems, registry)
+
+
+def _check_mission_references(entities: list[EntityDefinition], where: list[Path], layout: SceneLayout,
+                              package_names: list[str], src: SourceMap, issues: list[Issue]) -> None:
+    """A mission naming a pad or package this world lacks fails at load, at the step that names it."""
+    for ent, (group, i) in zip(entities, where):
+        for key, comp in ent.components.items():
+            if isinstance(comp, MissionSpec):
+                for path, message in mission_reference_issues(comp, layout, package_names):
+                    issues.append(src.issue((group, i, "components", key, *path), message))
+
+
+def _body_box(ent: EntityDefinition) -> tuple[np.ndarray, np.ndarray]:
+    """Centre (3,) and half extents (3,) [m] of the box an entity occupies at spawn (yaw: ``ent.yaw_rad``).
+
+    A car's box reaches down to its wheels' contact patches (``ground_clearance_m`` below the chassis).
+    """
+    if ent.kind == "package":
+        half = 0.5 * np.asarray(ent.params["size_m"], dtype=float)
+        return np.asarray(ent.pos_enu_m, dtype=float), half
+    half = np.asarray(ent.params["body_half_extents_m"], dtype=float).copy()
+    clearance = float(ent.params.get("ground_clearance_m", 0.0))
+    center = np.asarray(ent.pos_enu_m, dtype=float).copy()
+    center[2] -= 0.5 * clearance
+    half[2] += 0.5 * clearance
+    return center, half
+
+
+def _check_spawn_clearance(entities: list[EntityDefinition], where: list[Path], layout: SceneLayout,
+                           src: SourceMap, issues: list[Issue]) -> None:
+    """Refuse bodies that start inside a scene object, below the ground or inside each other.
+
+    PyBullet resolves such overlaps by throwing the bodies out at tens of m/s at t = 0. Touching is
+    fine: each box is shrunk by :data:`SPAWN_TOLERANCE_M` first (bodies on pads rest 5 mm above).
+    """
+    boxes = []
+    for ent, (group, i) in zip(entities, where):
+        center, half = _body_box(ent)
+        inner = np.maximum(half - SPAWN_TOLERANCE_M, 1e-6)
+        boxes.append((center, inner))
+        path: Path = (group, i, "pose")
+        bottom = center[2] - half[2]
+        if bottom < -SPAWN_TOLERANCE_M:
+            issues.append(src.issue(path, f"{ent.name} starts underground: its bottom is at z = {bottom:.2f} m, "
+                                          "below the ground (z = 0)"))
+            continue
+        hits = layout.objects_overlapping_box(center, inner, ent.yaw_rad, skip_ground=True)
+        if hits:
+            names = ", ".join(f"{layout.objects[k].cls.name.lower()} {layout.objects[k].name!r}" for k in hits[:3])
+            more = f" and {len(hits) - 3} more" if len(hits) > 3 else ""
+            issues.append(src.issue(path, f"{ent.name} starts inside {names}{more} (its box: centre "
+                                          f"{np.round(center, 2).tolist()} m, half extents "
+                                          f"{np.round(half, 2).tolist()} m)"))
+    for a in range(len(entities)):
+        for b in range(a):
+            ca, ha = boxes[a]
+            cb, hb = boxes[b]
+            if box_overlaps_box(ca, ha, entities[a].yaw_rad, cb, hb, entities[b].yaw_rad):
+                first = where[b]
+                issues.append(src.issue((*where[a], "pose"),
+                                        f"{entities[a].name} overlaps {entities[b].name} at spawn "
+                                        f"({first[0]}[{first[1]}], line {src.line_of(first)})"))
 
 
 def _path_in_message(message: str, default: Path) -> Path:

@@ -3,16 +3,92 @@
 PyYAML's ``safe_load`` forgets where values came from and silently keeps the last of two duplicate
 keys. Here the document is composed into nodes, duplicate keys are reported, and each key path is
 mapped to its 1-based line number in a :class:`~unetyemu_ecs.config.schema.SourceMap`.
+
+Input is bounded before it is built (:func:`prescan`): the text's size, its nesting depth and the
+number of nodes after alias expansion, so that neither an alias bomb ("billion laughs"), a
+self-referencing anchor, thousands of nested brackets nor a device like ``/dev/zero`` can exhaust
+memory, recursion or time. libyaml is used when PyYAML has it (about 15x faster).
 """
 
 from __future__ import annotations
 
+import os
+import stat
 from pathlib import Path as FsPath
 from typing import Any
 
 import yaml
 
 from .schema import ConfigError, Issue, Path, SourceMap
+
+_Loader: Any = getattr(yaml, "CSafeLoader", yaml.SafeLoader) if yaml.__with_libyaml__ else yaml.SafeLoader
+
+
+def prescan(text: str, source: str, *, max_depth: int, max_nodes: int, aliases: bool = True,
+            what: str = "file") -> None:
+    """Refuse deep nesting and too many nodes (counting each alias as the nodes it stands for).
+
+    Reads parser events one by one and stops at the first offence, before anything is built:
+    expanding aliases is exponential (a few lines can stand for billions of nodes), an alias inside
+    its own anchor recurses forever, and PyYAML's scanner is quadratic in flow nesting.
+    ``aliases=False`` refuses any alias (missions, which arrive over the network). Text that does
+    not parse is left for the loader to report.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``source`` and the line of the offending event.
+    """
+    def fail(event: yaml.Event, message: str) -> None:
+        raise ConfigError([Issue(source, event.start_mark.line + 1, (), message)])
+
+    open_anchors: list[str | None] = []   # anchor of each open collection
+    depth_at_open: list[int] = []
+    sizes: list[int] = []                 # nodes (expanded) inside each open collection so far
+    deepest: list[int] = []               # depth below each open collection
+    anchors: dict[str, tuple[int, int]] = {}   # anchor -> (expanded nodes, depth below it)
+    total = 0
+
+    def add(n: int, below: int) -> None:
+        nonlocal total
+        total += n
+        if sizes:
+            sizes[-1] += n
+            deepest[-1] = max(deepest[-1], below + 1)
+
+    try:
+        for event in yaml.parse(text, Loader=_Loader):
+            if isinstance(event, yaml.AliasEvent):
+                if not aliases:
+                    fail(event, f"YAML anchors and aliases are not allowed in a {what}")
+                if event.anchor in open_anchors:
+                    fail(event, f"alias *{event.anchor} refers to its own anchor (a structure that contains itself)")
+                n, below = anchors.get(event.anchor, (1, 0))
+                if len(sizes) + below > max_depth:
+                    fail(event, f"{what} is nested more than {max_depth} levels deep (through alias *{event.anchor})")
+                add(n, below)
+            elif isinstance(event, yaml.ScalarEvent):
+                add(1, 0)
+                if event.anchor is not None:
+                    anchors[event.anchor] = (1, 0)
+            elif isinstance(event, (yaml.SequenceStartEvent, yaml.MappingStartEvent)):
+                if len(sizes) + 1 > max_depth:
+                    fail(event, f"{what} is nested more than {max_depth} levels deep")
+                total += 1
+                open_anchors.append(event.anchor)
+                sizes.append(1)
+                deepest.append(0)
+            elif isinstance(event, (yaml.SequenceEndEvent, yaml.MappingEndEvent)):
+                anchor, n, below = open_anchors.pop(), sizes.pop(), deepest.pop()
+                if anchor is not None:
+                    anchors[anchor] = (n, below + 1)
+                if sizes:
+                    sizes[-1] += n
+                    deepest[-1] = max(deepest[-1], below + 1)
+            if total > max_nodes:
+                fail(event, f"{what} has more than {max_nodes} values (after expanding aliases)")
+    except yaml.YAMLError:
+        return
 
 
 def _build(node: yaml.Node, path: Path, src: SourceMap, constructor: yaml.constructor.SafeConstructor,
@@ -53,7 +129,7 @@ def load_yaml_text(text: str, file: str) -> tuple[Any, SourceMap]:
     """
     src = SourceMap(file)
     try:
-        node = yaml.compose(text, Loader=yaml.SafeLoader)
+        node = yaml.compose(text, Loader=_Loader)
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         line = mark.line + 1 if mark is not None else None
@@ -69,18 +145,58 @@ def load_yaml_text(text: str, file: str) -> tuple[Any, SourceMap]:
     except yaml.constructor.ConstructorError as exc:
         mark = exc.problem_mark
         raise ConfigError([Issue(file, mark.line + 1 if mark else None, (), str(exc.problem))]) from None
+    except (ValueError, OverflowError) as exc:   # e.g. an integer of more than 4300 digits
+        raise ConfigError([Issue(file, None, (), f"YAML value cannot be read: {exc}")]) from None
     if issues:
         raise ConfigError(issues)
     return doc, src
 
 
-def load_yaml_file(path: str | FsPath) -> tuple[Any, SourceMap]:
-    """Read and parse a YAML file; a missing or unreadable file is a :class:`ConfigError`."""
+def read_text_file(path: str | FsPath, max_bytes: int, what: str = "file") -> str:
+    """Read at most ``max_bytes`` of UTF-8 text from a regular file (or a character device such as
+    ``/dev/null``, read without blocking); anything else, or anything longer, is a ConfigError."""
     p = FsPath(path)
+
+    def fail(message: str) -> ConfigError:
+        return ConfigError([Issue(str(p), None, (), message)])
+
     try:
-        text = p.read_text(encoding="utf-8")
+        fd = os.open(p, os.O_RDONLY | os.O_NONBLOCK)
     except FileNotFoundError:
-        raise ConfigError([Issue(str(p), None, (), "file not found")]) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError([Issue(str(p), None, (), f"cannot read file: {exc}")]) from None
-    return load_yaml_text(text, str(p))
+        raise fail("file not found") from None
+    except OSError as exc:
+        raise fail(f"cannot read file: {exc.strerror or exc}") from None
+    try:
+        mode = os.fstat(fd).st_mode
+        if stat.S_ISDIR(mode):
+            raise fail("is a directory, not a file")
+        if not (stat.S_ISREG(mode) or stat.S_ISCHR(mode)):
+            kind = "a FIFO (named pipe)" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else "not a file"
+            raise fail(f"is {kind}; a {what} must be a regular file")
+        chunks, size = [], 0
+        while size <= max_bytes:
+            chunk = os.read(fd, max_bytes + 1 - size)
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+    except BlockingIOError:
+        raise fail(f"cannot read without waiting (a terminal or device?); a {what} must be a regular file") from None
+    except OSError as exc:
+        raise fail(f"cannot read file: {exc.strerror or exc}") from None
+    finally:
+        os.close(fd)
+    if size > max_bytes:
+        raise fail(f"is larger than {max_bytes} bytes (the limit of a {what})")
+    try:
+        return b"".join(chunks).decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise fail(f"is not UTF-8 text: {exc}") from None
+
+
+def load_yaml_file(path: str | FsPath, max_bytes: int, *, max_depth: int, max_nodes: int,
+                   what: str = "file") -> tuple[Any, SourceMap]:
+    """Read (bounded: :func:`read_text_file`), prescan and parse a YAML file."""
+    text = read_text_file(path, max_bytes, what)
+    prescan(text, str(FsPath(path)), max_depth=max_depth, max_nodes=max_nodes, what=what)
+    return load_yaml_text(text, str(FsPath(path)))

@@ -19,7 +19,7 @@ from typing import Annotated
 
 import numpy as np
 
-from ..config.schema import Ge, Gt
+from ..config.schema import Ge, Gt, Le
 from ..units import GRAVITY_M_S2
 
 MIN_COS_TILT = float(np.cos(np.deg2rad(60.0)))   # tilt compensation stops growing beyond 60 deg
@@ -34,13 +34,14 @@ class StabilizerGains:
     hover within 5 cm without overshooting a climb.
     """
 
-    gain_vz_p: Annotated[float, Ge(0.0)] = 4.0          # [1/s] vertical-speed error -> acceleration
-    gain_vz_i: Annotated[float, Ge(0.0)] = 2.0          # [1/s^2]
-    gain_vz_d: Annotated[float, Ge(0.0)] = 0.05         # [-] on measured vertical acceleration
-    lim_vz_int_m_s: Annotated[float, Gt(0.0)] = 4.0     # integral clamp: covers +/- 0.8 g of extra load
-    gain_att_p: Annotated[float, Ge(0.0)] = 1.146       # [1/rad] (the paper's 0.02 per degree)
-    gain_rate_d: Annotated[float, Ge(0.0)] = 0.2        # [s/rad]
-    gain_yaw_rate_p: Annotated[float, Ge(0.0)] = 1.0    # [s/rad]
+    # Ranges: gains within 1000 (the defaults are 0.05-4; beyond, a 240 Hz loop diverges); clamp within 10 g
+    gain_vz_p: Annotated[float, Ge(0.0), Le(1_000.0)] = 4.0          # [1/s] vertical-speed error -> acceleration
+    gain_vz_i: Annotated[float, Ge(0.0), Le(1_000.0)] = 2.0          # [1/s^2]
+    gain_vz_d: Annotated[float, Ge(0.0), Le(1_000.0)] = 0.05         # [-] on measured vertical acceleration
+    lim_vz_int_m_s: Annotated[float, Gt(0.0), Le(100.0)] = 4.0     # integral clamp: covers +/- 0.8 g of extra load
+    gain_att_p: Annotated[float, Ge(0.0), Le(1_000.0)] = 1.146       # [1/rad] (the paper's 0.02 per degree)
+    gain_rate_d: Annotated[float, Ge(0.0), Le(1_000.0)] = 0.2        # [s/rad]
+    gain_yaw_rate_p: Annotated[float, Ge(0.0), Le(1_000.0)] = 1.0    # [s/rad]
 
 
 def vertical_speed_to_thrust_frac(vz_sp_m_s: np.ndarray, vz_m_s: np.ndarray, acc_z_m_s2: np.ndarray,

@@ -13,7 +13,7 @@ from typing import Annotated
 
 import numpy as np
 
-from ..config.schema import Ge, Gt
+from ..config.schema import Ge, Gt, Le
 from ..units import wrap_angle_rad
 
 SPEED_FOR_STEER_SCALE_M_S = 50.0   # the steering limit falls linearly to its scale at this speed
@@ -23,17 +23,19 @@ SPEED_FOR_STEER_SCALE_M_S = 50.0   # the steering limit falls linearly to its sc
 class CarControllerGains:
     """Layer-2 and route-following gains for cars (world-file key ``car_controller``); ours."""
 
-    gain_speed_p: Annotated[float, Gt(0.0)] = 1.2         # [1/s] speed error -> acceleration
-    gain_speed_i: Annotated[float, Ge(0.0)] = 0.4         # [1/s^2]
-    lim_speed_int_m_s2: Annotated[float, Ge(0.0)] = 1.5   # clamp on the integral's acceleration
-    gain_yaw_rate_p: Annotated[float, Ge(0.0)] = 0.3      # [s] yaw-rate error -> extra steering [rad]
-    max_accel_m_s2: Annotated[float, Gt(0.0)] = 3.0       # comfort limits of the speed controller
-    max_decel_m_s2: Annotated[float, Gt(0.0)] = 4.0
-    max_lat_accel_m_s2: Annotated[float, Gt(0.0)] = 2.5   # corner speeds of a route: v = sqrt(a_lat R)
-    lead_min_m: Annotated[float, Gt(0.0)] = 3.0           # pure-pursuit look-ahead: max(lead_min, lead_time v)
-    lead_time_s: Annotated[float, Ge(0.0)] = 0.5
-    arrival_radius_m: Annotated[float, Gt(0.0)] = 1.0     # a route is done within this of its end, stopped
-    cruise_speed_m_s: Annotated[float, Gt(0.0)] = 8.0     # default speed of targets and routes
+    # Ranges: gains within 100 (defaults 0.3-1.2); accelerations within 5 g (50 m/s^2, beyond any tyre);
+    # look-ahead within 1 km or 60 s; speeds within 100 m/s (beyond any road car)
+    gain_speed_p: Annotated[float, Gt(0.0), Le(100.0)] = 1.2         # [1/s] speed error -> acceleration
+    gain_speed_i: Annotated[float, Ge(0.0), Le(100.0)] = 0.4         # [1/s^2]
+    lim_speed_int_m_s2: Annotated[float, Ge(0.0), Le(50.0)] = 1.5   # clamp on the integral's acceleration
+    gain_yaw_rate_p: Annotated[float, Ge(0.0), Le(100.0)] = 0.3      # [s] yaw-rate error -> extra steering [rad]
+    max_accel_m_s2: Annotated[float, Gt(0.0), Le(50.0)] = 3.0       # comfort limits of the speed controller
+    max_decel_m_s2: Annotated[float, Gt(0.0), Le(50.0)] = 4.0
+    max_lat_accel_m_s2: Annotated[float, Gt(0.0), Le(50.0)] = 2.5   # corner speeds of a route: v = sqrt(a_lat R)
+    lead_min_m: Annotated[float, Gt(0.0), Le(1_000.0)] = 3.0           # pure-pursuit look-ahead: max(lead_min, lead_time v)
+    lead_time_s: Annotated[float, Ge(0.0), Le(60.0)] = 0.5
+    arrival_radius_m: Annotated[float, Gt(0.0), Le(100.0)] = 1.0     # a route is done within this of its end, stopped
+    cruise_speed_m_s: Annotated[float, Gt(0.0), Le(100.0)] = 8.0     # default speed of targets and routes
 
 
 def steer_limit_rad(speed_m_s: np.ndarray, max_steer_rad: np.ndarray, scale_at_50_m_s: np.ndarray) -> np.ndarray:

@@ -13,7 +13,7 @@ from typing import Annotated
 
 import numpy as np
 
-from ..config.schema import Ge, Gt
+from ..config.schema import Ge, Gt, Le
 from ..units import GRAVITY_M_S2, wrap_angle_rad
 
 
@@ -21,12 +21,13 @@ from ..units import GRAVITY_M_S2, wrap_angle_rad
 class GuidanceGains:
     """Layer-3 gains (world-file key ``position_controller``); ours, tuned at 240 Hz for the presets."""
 
-    gain_pos_p: Annotated[float, Gt(0.0)] = 1.0          # [1/s] position error -> velocity
-    gain_vel_p: Annotated[float, Gt(0.0)] = 2.0          # [1/s] velocity error -> acceleration
-    gain_vel_i: Annotated[float, Ge(0.0)] = 0.3          # [1/s^2]
-    lim_vel_int_m_s2: Annotated[float, Ge(0.0)] = 2.0    # clamp on the integral's acceleration
-    gain_yaw_p: Annotated[float, Gt(0.0)] = 2.0          # [1/s] heading error -> yaw rate
-    lim_decel_m_s2: Annotated[float, Gt(0.0)] = 2.5      # braking that sizes the approach speed
+    # Ranges: gains within 1000 (defaults 0.3-2); accelerations within 10 g (100 m/s^2)
+    gain_pos_p: Annotated[float, Gt(0.0), Le(1_000.0)] = 1.0          # [1/s] position error -> velocity
+    gain_vel_p: Annotated[float, Gt(0.0), Le(1_000.0)] = 2.0          # [1/s] velocity error -> acceleration
+    gain_vel_i: Annotated[float, Ge(0.0), Le(1_000.0)] = 0.3          # [1/s^2]
+    lim_vel_int_m_s2: Annotated[float, Ge(0.0), Le(100.0)] = 2.0    # clamp on the integral's acceleration
+    gain_yaw_p: Annotated[float, Gt(0.0), Le(1_000.0)] = 2.0          # [1/s] heading error -> yaw rate
+    lim_decel_m_s2: Annotated[float, Gt(0.0), Le(100.0)] = 2.5      # braking that sizes the approach speed
 
 
 def _per_row(gain: float | np.ndarray) -> float | np.ndarray:

@@ -55,13 +55,15 @@ import json
 from dataclasses import dataclass
 from typing import Annotated, Any
 
-import yaml
 
 from ..config.schema import (ConfigError, FieldError, Ge, Gt, Issue, NonEmpty, SourceMap, convert,
                              parse)
-from ..config.yaml_source import load_yaml_text
+from ..config.limits import (MAX_MISSION_NESTING, MAX_MISSION_NODES, MAX_MISSION_STEPS, MAX_MISSION_TEXT_BYTES, XM,
+                             ZM, Deg, Name)
+from ..config.schema import MaxLen
+from ..config.yaml_source import load_yaml_text, prescan
 from .spec import (MAX_CLIMB_SPEED_M_S, MAX_CRUISE_SPEED_M_S, MAX_DESCENT_SPEED_M_S, MissionSpec,
-                   MissionStep, Waypoint)
+                   MissionStep, Wait, Waypoint)
 
 MOVEMENT_STEP_TYPES: dict[int, str] = {1: "cruise", 2: "takeoff", 3: "land", 4: "pickup", 5: "deliver"}
 _MOVEMENTS_LISTED = ", ".join(f"{k} {v}" for k, v in MOVEMENT_STEP_TYPES.items())
@@ -79,14 +81,14 @@ _DEFAULT_SPEED_FIELD = ("cruise_speed", MAX_CRUISE_SPEED_M_S)
 class _UnityItem:
     """One item of a paper-format mission, in Unity axes (x right, y up, z forward = north)."""
 
-    movementId: int                                  # noqa: N815 (the paper's key)
-    x: float                                         # right = east [m]
-    y: float                                         # up [m]
-    z: float                                         # forward = north [m]
-    yaw: float | None = None                         # clockwise from forward [deg]
-    speed: Annotated[float, Gt(0)] | None = None     # [m/s]
-    waitBefore: Annotated[float, Ge(0)] = 0.0        # noqa: N815 [s]
-    waitAfter: Annotated[float, Ge(0)] = 0.0         # noqa: N815 [s]
+    movementId: int                                  # noqa: N815 (the paper's key; one of MOVEMENT_STEP_TYPES)
+    x: XM                                            # right = east [m], within 20 km (config.limits)
+    y: ZM                                            # up [m], in [-100, 10 000]
+    z: XM                                            # forward = north [m]
+    yaw: Deg | None = None                           # clockwise from forward [deg]
+    speed: Annotated[float, Gt(0)] | None = None     # [m/s]; capped per item kind in __post_init__
+    waitBefore: Wait = 0.0                           # noqa: N815 [s]
+    waitAfter: Wait = 0.0                            # noqa: N815 [s]
 
     def __post_init__(self) -> None:
         kind = MOVEMENT_STEP_TYPES.get(self.movementId)
@@ -158,8 +160,9 @@ def _parse_paper(doc: dict[Any, Any], key: str, src: SourceMap) -> MissionSpec:
     for k in doc:
         if k not in (key, "name"):
             issues.append(src.issue((k,), f"unknown key {k!r} (allowed: name, {key})"))
-    name = convert(doc.get("name", "mission"), Annotated[str, NonEmpty()], ("name",), src, issues)
-    items = convert(doc[key], Annotated[list[_UnityItem], NonEmpty()], (key,), src, issues)
+    name = convert(doc.get("name", "mission"), Name, ("name",), src, issues)
+    # each item is at most one step: the same cap as our format's steps
+    items = convert(doc[key], Annotated[list[_UnityItem], NonEmpty(), MaxLen(MAX_MISSION_STEPS)], (key,), src, issues)
     if issues:
         raise ConfigError(issues)
     spec = MissionSpec(name=name, steps=_steps_from_unity(items))
@@ -183,32 +186,20 @@ def _no_duplicates(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     return out
 
 
-MAX_NESTING = 16   # our format nests 5 deep (mission, steps, step, waypoints, waypoint)
+MAX_NESTING = MAX_MISSION_NESTING
 
 
 def _prescan(text: str, source: str) -> None:
-    """Refuse YAML aliases and deep nesting before the document is built.
+    """Refuse YAML aliases, deep nesting and too many values before the document is built.
 
-    Missions arrive over the network. Expanding aliases is exponential (a few lines can stand for
-    billions of nodes; a self-referencing anchor recurses forever), and PyYAML's scanner is
-    quadratic in flow nesting; reading events one by one stops at the first offence. Text that
-    does not parse is left for the loader to report.
+    Missions arrive over the network: the same guard as world files (:func:`prescan`), with aliases
+    refused outright and tighter bounds.
     """
-    depth = 0
-    try:
-        for event in yaml.parse(text, Loader=yaml.SafeLoader):
-            if isinstance(event, yaml.AliasEvent):
-                raise ConfigError([Issue(source, event.start_mark.line + 1, (),
-                                         "YAML anchors and aliases are not allowed in a mission")])
-            if isinstance(event, (yaml.SequenceStartEvent, yaml.MappingStartEvent)):
-                depth += 1
-                if depth > MAX_NESTING:
-                    raise ConfigError([Issue(source, event.start_mark.line + 1, (),
-                                             f"mission is nested more than {MAX_NESTING} levels deep")])
-            elif isinstance(event, (yaml.SequenceEndEvent, yaml.MappingEndEvent)):
-                depth -= 1
-    except yaml.YAMLError:
-        return
+    if len(text) > MAX_MISSION_TEXT_BYTES:
+        raise ConfigError([Issue(source, None, (), f"mission text is longer than {MAX_MISSION_TEXT_BYTES} "
+                                                   "characters")])
+    prescan(text, source, max_depth=MAX_MISSION_NESTING, max_nodes=MAX_MISSION_NODES, aliases=False,
+            what="mission")
 
 
 def _load_document(text: Any, source: str) -> tuple[Any, SourceMap]:
@@ -234,6 +225,8 @@ def _load_document(text: Any, source: str) -> tuple[Any, SourceMap]:
         json_error: json.JSONDecodeError | None = exc
     except _DuplicateKey:
         json_error = None   # the YAML loader has reported it, with both lines
+    except (ValueError, RecursionError) as exc:   # e.g. an integer of more than 4300 digits
+        raise ConfigError([Issue(source, None, (), f"invalid JSON: {exc}")]) from None
     if yaml_error is None:
         return doc, src
     if json_error is not None and text.lstrip()[:1] in ("{", "["):

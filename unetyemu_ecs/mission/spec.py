@@ -21,7 +21,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Annotated, Literal, get_args
 
-from ..config.schema import FieldError, Ge, Gt, Le, NonEmpty
+from ..config.limits import MAX_DURATION_S, MAX_MISSION_STEPS, MAX_WAIT_S, MAX_WAYPOINTS, XM, ZM, Deg, Name, MAX_Z_M
+from ..config.schema import FieldError, Ge, Gt, Le, MaxLen, NonEmpty
 
 StepType = Literal["takeoff", "cruise", "land", "pickup", "deliver", "recharge", "idle"]
 STEP_TYPES: tuple[str, ...] = get_args(StepType)
@@ -32,6 +33,9 @@ MAX_CRUISE_SPEED_M_S = 30.0
 MAX_CLIMB_SPEED_M_S = 8.0
 MAX_DESCENT_SPEED_M_S = 5.0
 
+# Waits within a step: up to a day (config.limits.MAX_WAIT_S).
+Wait = Annotated[float, Ge(0), Le(MAX_WAIT_S)]   # [s]
+
 CruiseSpeed = Annotated[float, Gt(0), Le(MAX_CRUISE_SPEED_M_S)]      # [m/s]
 ClimbSpeed = Annotated[float, Gt(0), Le(MAX_CLIMB_SPEED_M_S)]        # [m/s]
 DescentSpeed = Annotated[float, Gt(0), Le(MAX_DESCENT_SPEED_M_S)]    # [m/s]
@@ -41,10 +45,11 @@ DescentSpeed = Annotated[float, Gt(0), Le(MAX_DESCENT_SPEED_M_S)]    # [m/s]
 class Waypoint:
     """One point of a route, ENU metres; speeds left as None fall back to the mission's defaults."""
 
-    x: float                                   # east [m]
-    y: float                                   # north [m]
-    z: float                                   # height above the world's ground plane z = 0 [m]
-    yaw_deg: float | None = None               # ENU yaw [deg], 0 = east, CCW; None: guidance decides
+    # within the world's extent (config.limits): |x|, |y| <= 20 km, z in [-100, 10 000] m
+    x: XM                                      # east [m]
+    y: XM                                      # north [m]
+    z: ZM                                      # height above the world's ground plane z = 0 [m]
+    yaw_deg: Deg | None = None                 # ENU yaw [deg], 0 = east, CCW; None: guidance decides
     cruise_speed: CruiseSpeed | None = None    # horizontal speed [m/s]
     climb_speed: ClimbSpeed | None = None      # [m/s]
     descent_speed: DescentSpeed | None = None  # [m/s]
@@ -82,15 +87,17 @@ class MissionStep:
     """
 
     type: StepType
-    wait_before: Annotated[float, Ge(0)] = 0.0                    # [s]
-    wait_after: Annotated[float, Ge(0)] = 0.0                     # [s]
-    waypoints: list[Waypoint] = field(default_factory=list)
-    altitude_m: Annotated[float, Gt(0)] | None = None             # takeoff: height above the ground [m]
-    package: Annotated[str, NonEmpty()] | None = None             # pickup: package name; None = nearest
-    pad: Annotated[str, NonEmpty()] | None = None                 # land/deliver/cruise/recharge: named pad
-    duration_s: Annotated[float, Ge(0)] | None = None             # idle: how long; recharge: max time [s]
+    wait_before: Wait = 0.0                                       # [s]
+    wait_after: Wait = 0.0                                        # [s]
+    waypoints: Annotated[list[Waypoint], MaxLen(MAX_WAYPOINTS)] = field(default_factory=list)
+    altitude_m: Annotated[float, Gt(0), Le(MAX_Z_M)] | None = None   # takeoff: height above the ground [m]
+    package: Name | None = None                                   # pickup: package name; None = nearest
+    pad: Name | None = None                                       # land/deliver/cruise/recharge: named pad
+    # idle: how long; recharge: max time [s]; at most a week (config.limits.MAX_DURATION_S)
+    duration_s: Annotated[float, Ge(0), Le(MAX_DURATION_S)] | None = None
     target_soc_frac: Annotated[float, Gt(0), Le(1)] = 1.0         # recharge: stop at this state of charge
-    charge_power_w: Annotated[float, Gt(0)] | None = None         # recharge; None = vehicle's charger [W]
+    # recharge; None = vehicle's charger [W]; 1 MW is a megawatt truck charger, far above any drone's
+    charge_power_w: Annotated[float, Gt(0), Le(1e6)] | None = None
 
     def __post_init__(self) -> None:
         if self.type not in _USES:
@@ -127,11 +134,11 @@ class MissionStep:
 class MissionSpec:
     """A whole mission: default speeds for waypoints that give none, and the steps in order."""
 
-    name: Annotated[str, NonEmpty()] = "mission"
+    name: Name = "mission"
     cruise_speed: CruiseSpeed = 5.0       # [m/s]
     climb_speed: ClimbSpeed = 3.0         # [m/s]
     descent_speed: DescentSpeed = 1.5     # [m/s]
-    steps: Annotated[list[MissionStep], NonEmpty()]
+    steps: Annotated[list[MissionStep], NonEmpty(), MaxLen(MAX_MISSION_STEPS)]   # refused before parsing the steps
 
 
 __all__ = [

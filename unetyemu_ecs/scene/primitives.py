@@ -205,6 +205,32 @@ class SceneLayout:
         """Return the top z [m] of the highest box/cylinder footprint covering (x, y); 0.0 for ground."""
         return self.support_at(x_m, y_m)[0]
 
+    def objects_overlapping_box(self, center_enu_m: np.ndarray, half_extents_m: np.ndarray, yaw_rad: float,
+                                skip_ground: bool = False) -> list[int]:
+        """Return the ids of the objects whose shapes intersect a box yawed about z (touching is not
+        intersecting), in id order; ``skip_ground`` leaves out object 0."""
+        c = np.asarray(center_enu_m, dtype=np.float64)
+        h = np.asarray(half_extents_m, dtype=np.float64)
+        boxes, cyls, spheres = self._footprints
+        hit: set[int] = set()
+        if boxes.shape[0]:
+            z_ok = np.abs(boxes[:, 2] - c[2]) < boxes[:, 5] + h[2]
+            xy_ok = _rects_overlap(c[:2], h[:2], yaw_rad, boxes[:, :2], boxes[:, 3:5], boxes[:, 6])
+            hit.update(boxes[z_ok & xy_ok, 7].astype(int).tolist())
+        if cyls.shape[0]:
+            z_ok = np.abs(cyls[:, 2] - c[2]) < cyls[:, 4] + h[2]
+            d = _rect_point_distance(c[:2], h[:2], yaw_rad, cyls[:, :2])
+            hit.update(cyls[z_ok & (d < cyls[:, 3]), 5].astype(int).tolist())
+        if spheres.shape[0]:
+            co, si = np.cos(yaw_rad), np.sin(yaw_rad)
+            d = spheres[:, :3] - c
+            local = np.stack([co * d[:, 0] + si * d[:, 1], -si * d[:, 0] + co * d[:, 1], d[:, 2]], axis=1)
+            dist = np.linalg.norm(np.maximum(np.abs(local) - h, 0.0), axis=1)
+            hit.update(spheres[dist < spheres[:, 3], 4].astype(int).tolist())
+        if skip_ground:
+            hit.discard(0)
+        return sorted(hit)
+
     def nearest_object(self, point_enu_m: np.ndarray, cls: SceneClass | None = None) -> tuple[SceneObject, float]:
         """Return the object (of class ``cls`` if given) whose surface is nearest to a point, and that distance [m].
 
@@ -242,6 +268,39 @@ class SceneLayout:
         return self.objects[int(id_all[k])], float(dist_all[k])
 
 
+def _rects_overlap(c: np.ndarray, h: np.ndarray, yaw: float, oc: np.ndarray, oh: np.ndarray,
+                   oyaw: np.ndarray) -> np.ndarray:
+    """Separating-axis test of one yawed rectangle (centre (2,), half (2,)) against many (R, 2) -> (R,) bool."""
+    u = np.array([np.cos(yaw), np.sin(yaw)])
+    v = np.array([-u[1], u[0]])
+    ou = np.stack([np.cos(oyaw), np.sin(oyaw)], axis=1)
+    ov = np.stack([-ou[:, 1], ou[:, 0]], axis=1)
+    d = oc - c
+    overlap = np.ones(oc.shape[0], dtype=bool)
+    for axis in (u[None, :].repeat(oc.shape[0], 0), v[None, :].repeat(oc.shape[0], 0), ou, ov):
+        r1 = h[0] * np.abs(axis @ u) + h[1] * np.abs(axis @ v)
+        r2 = oh[:, 0] * np.abs(np.sum(axis * ou, axis=1)) + oh[:, 1] * np.abs(np.sum(axis * ov, axis=1))
+        overlap &= np.abs(np.sum(axis * d, axis=1)) < r1 + r2
+    return overlap
+
+
+def _rect_point_distance(c: np.ndarray, h: np.ndarray, yaw: float, pts: np.ndarray) -> np.ndarray:
+    """Distance (P,) [m] from points (P, 2) to a yawed rectangle (0 inside)."""
+    co, si = np.cos(yaw), np.sin(yaw)
+    d = pts - c
+    local = np.stack([co * d[:, 0] + si * d[:, 1], -si * d[:, 0] + co * d[:, 1]], axis=1)
+    return np.linalg.norm(np.maximum(np.abs(local) - h, 0.0), axis=1)
+
+
+def box_overlaps_box(c1: np.ndarray, h1: np.ndarray, yaw1: float, c2: np.ndarray, h2: np.ndarray, yaw2: float) -> bool:
+    """Whether two boxes yawed about z (centres (3,), half extents (3,) [m]) intersect; touching does not."""
+    if abs(float(c1[2]) - float(c2[2])) >= float(h1[2]) + float(h2[2]):
+        return False
+    return bool(_rects_overlap(np.asarray(c1[:2], float), np.asarray(h1[:2], float), yaw1,
+                               np.asarray(c2[:2], float)[None, :], np.asarray(h2[:2], float)[None, :],
+                               np.array([yaw2]))[0])
+
+
 __all__ = [
     "GROUND_THICKNESS_M",
     "PAD_THICKNESS_M",
@@ -256,4 +315,5 @@ __all__ = [
     "SceneObject",
     "Shape",
     "Sphere",
+    "box_overlaps_box",
 ]

@@ -22,12 +22,14 @@ import esper
 import numpy as np
 
 from ..components.body import FleetSlot, Identity
-from ..config.schema import FieldError, Gt, NonEmpty
+from ..config.limits import MAX_MOUNT_M, MAX_TOPIC_LEN, Deg, SensorRate
+from ..config.schema import FieldError, Ge, Le, MaxLen, NonEmpty
 from ..frames import quat_xyzw_from_euler_rpy
 from ..world import StepContext
 
 
 # an absolute ROS 2 topic name: /token[/token...], tokens of letters, digits and _, not starting with a digit
+Mount = Annotated[float, Ge(-MAX_MOUNT_M), Le(MAX_MOUNT_M)]   # [m]
 ROS_TOPIC_RE = re.compile(r"^(/[A-Za-z_][A-Za-z0-9_]*)+$")
 
 
@@ -43,11 +45,13 @@ class SensorSpec:
     LINK: ClassVar[str] = ""
     OPTICAL: ClassVar[str] = ""
 
-    rate_hz: Annotated[float, Gt(0.0)] = 10.0
-    mount_xyz_m: tuple[float, float, float] = (0.0, 0.0, 0.0)        # in base_link (FLU) [m]
-    mount_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)      # sensor axes relative to base_link
-    topic: Annotated[str, NonEmpty()] | None = None                  # None: /<vehicle>/<default suffix>
-    frame_id: Annotated[str, NonEmpty()] | None = None               # None: <vehicle>/<default link>
+    rate_hz: SensorRate = 10.0                                       # [Hz], config.limits
+    # a sensor sits on its vehicle: within 10 m of base_link (config.limits.MAX_MOUNT_M)
+    mount_xyz_m: tuple[Mount, Mount, Mount] = (0.0, 0.0, 0.0)        # in base_link (FLU) [m]
+    mount_rpy_deg: tuple[Deg, Deg, Deg] = (0.0, 0.0, 0.0)            # sensor axes relative to base_link
+    # ROS 2 names: rmw refuses topic names longer than 255 characters
+    topic: Annotated[str, NonEmpty(), MaxLen(MAX_TOPIC_LEN)] | None = None      # None: /<vehicle>/<default suffix>
+    frame_id: Annotated[str, NonEmpty(), MaxLen(MAX_TOPIC_LEN)] | None = None   # None: <vehicle>/<default link>
     ros2: bool = True          # publish on ROS 2 when the bridge is on (False: Python API and logs only)
 
     def __post_init__(self) -> None:

@@ -14,7 +14,8 @@ import esper
 import numpy as np
 
 from ..components.flight import EnergyModel
-from ..config.schema import Gt
+from ..config.limits import SensorRate
+from ..config.schema import Gt, Le
 from ..phases import Phase
 from ..world import StepContext
 from .base import MountedSensor, SensorSpec, SensorSystemBase
@@ -25,9 +26,10 @@ from .messages import header, msg_type
 class BatterySensor(SensorSpec):
     """World-file key ``battery`` (drones: it reads the ``energy`` model)."""
 
-    rate_hz: Annotated[float, Gt(0.0)] = 1.0
-    nominal_voltage_v: Annotated[float, Gt(0.0)] = 22.2     # 6S lithium-polymer pack
-    cells: Annotated[int, Gt(0)] = 6
+    rate_hz: SensorRate = 1.0                 # [Hz], config.limits
+    # up to an 800 V electric-car pack (1000 V) of ~240 cells (256)
+    nominal_voltage_v: Annotated[float, Gt(0.0), Le(1_000.0)] = 22.2     # 6S lithium-polymer pack
+    cells: Annotated[int, Gt(0), Le(256)] = 6
 
 
 class BatterySystem(SensorSystemBase):

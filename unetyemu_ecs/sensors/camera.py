@@ -25,7 +25,8 @@ import esper
 import numpy as np
 
 from ..components.body import Appearance, FleetSlot
-from ..config.schema import Gt, Lt
+from ..config.limits import MAX_XY_M, SensorRate
+from ..config.schema import Gt, Le, Lt
 from ..phases import Phase
 from ..physics.static_scene import RGBA
 from ..scene.primitives import SceneClass
@@ -46,11 +47,13 @@ AMBIENT = 0.45
 class CameraSpec(SensorSpec):
     """Shared camera fields."""
 
-    rate_hz: Annotated[float, Gt(0.0)] = 10.0
-    width: Annotated[int, Gt(0)] = 640
-    height: Annotated[int, Gt(0)] = 480
+    rate_hz: SensorRate = 10.0                 # [Hz], config.limits
+    # 4096 x 3072 (12.6 MP, 4:3 at 4K width) at most: every pixel is a ray cast each frame, and a
+    # 20000 x 20000 image would need ~40 GB of ray buffers
+    width: Annotated[int, Gt(0), Le(4096)] = 640
+    height: Annotated[int, Gt(0), Le(3072)] = 480
     hfov_deg: Annotated[float, Gt(0.0), Lt(180.0)] = 90.0
-    max_range_m: Annotated[float, Gt(0.0)] = 200.0
+    max_range_m: Annotated[float, Gt(0.0), Le(2.0 * MAX_XY_M)] = 200.0   # across the whole world at most
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -13,7 +13,8 @@ from typing import Annotated, ClassVar
 
 import numpy as np
 
-from ..config.schema import Ge, Gt
+from ..config.limits import SensorRate
+from ..config.schema import Ge, Le
 from ..frames import R_from_quat_xyzw
 from ..geodesy import LocalTangentPlane
 from ..phases import Phase
@@ -30,9 +31,10 @@ class GpsSensor(SensorSpec):
 
     LINK: ClassVar[str] = "gps_link"
 
-    rate_hz: Annotated[float, Gt(0.0)] = 10.0
-    horizontal_noise_std_m: Annotated[float, Ge(0.0)] = 0.0
-    vertical_noise_std_m: Annotated[float, Ge(0.0)] = 0.0
+    rate_hz: SensorRate = 10.0                 # [Hz], config.limits
+    # noise within 100 m: a GPS worse than that is no fix (consumer receivers are ~2-5 m)
+    horizontal_noise_std_m: Annotated[float, Ge(0.0), Le(100.0)] = 0.0
+    vertical_noise_std_m: Annotated[float, Ge(0.0), Le(100.0)] = 0.0
 
 
 class GpsSystem(SensorSystemBase):

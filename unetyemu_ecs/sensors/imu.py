@@ -21,7 +21,8 @@ from typing import Annotated, ClassVar
 
 import numpy as np
 
-from ..config.schema import Ge, Gt
+from ..config.limits import SensorRate
+from ..config.schema import Ge, Le
 from ..frames import R_from_quat_xyzw, quat_multiply_xyzw
 from ..phases import Phase
 from ..world import StepContext
@@ -37,11 +38,13 @@ class ImuSensor(SensorSpec):
 
     LINK: ClassVar[str] = "imu_link"
 
-    rate_hz: Annotated[float, Gt(0.0)] = 100.0
-    gyro_noise_std_rad_s: Annotated[float, Ge(0.0)] = 0.0
-    accel_noise_std_m_s2: Annotated[float, Ge(0.0)] = 0.0
-    gyro_bias_walk_rad_s2: Annotated[float, Ge(0.0)] = 0.0     # bias random walk [rad/s per sqrt(s)]
-    accel_bias_walk_m_s3: Annotated[float, Ge(0.0)] = 0.0      # [m/s^2 per sqrt(s)]
+    rate_hz: SensorRate = 100.0                 # [Hz], config.limits
+    # Ranges: MEMS gyros are ~0.001-0.01 rad/s and accelerometers ~0.01-0.1 m/s^2 per sample; noise
+    # of 10 rad/s or 100 m/s^2 (10 g) or bias walks of 1 unit per sqrt(s) already drown every signal
+    gyro_noise_std_rad_s: Annotated[float, Ge(0.0), Le(10.0)] = 0.0
+    accel_noise_std_m_s2: Annotated[float, Ge(0.0), Le(100.0)] = 0.0
+    gyro_bias_walk_rad_s2: Annotated[float, Ge(0.0), Le(1.0)] = 0.0     # bias random walk [rad/s per sqrt(s)]
+    accel_bias_walk_m_s3: Annotated[float, Ge(0.0), Le(10.0)] = 0.0     # [m/s^2 per sqrt(s)]
 
 
 class ImuSystem(SensorSystemBase):

@@ -20,6 +20,7 @@ from typing import Annotated, Any, ClassVar
 
 import numpy as np
 
+from ..config.limits import SensorRate
 from ..config.schema import Ge, Gt, Le, Lt
 from ..phases import Phase
 from ..scene.primitives import SceneClass
@@ -46,12 +47,12 @@ class LidarSensor(SensorSpec):
 
     LINK: ClassVar[str] = "lidar_link"
 
-    rate_hz: Annotated[float, Gt(0.0)] = 10.0
-    horizontal_samples: Annotated[int, Gt(0)] = 360
+    rate_hz: SensorRate = 10.0                 # [Hz], config.limits
+    horizontal_samples: Annotated[int, Gt(0), Le(4096)] = 360   # spinning LiDARs have 512-4096 columns
     channels: Annotated[int, Gt(0), Le(256)] = 16
     vertical_fov_deg: Annotated[float, Ge(0.0), Le(180.0)] = 45.0
     vertical_center_deg: Annotated[float, Ge(-90.0), Le(90.0)] = 0.0
-    max_range_m: Annotated[float, Gt(0.0)] = 30.0
+    max_range_m: Annotated[float, Gt(0.0), Le(2_000.0)] = 30.0    # airborne survey LiDARs reach ~2 km
     min_range_m: Annotated[float, Ge(0.0), Lt(1000.0)] = 0.0     # hits nearer than this are dropped
 
 

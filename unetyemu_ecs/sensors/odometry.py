@@ -12,7 +12,7 @@ from typing import Annotated
 
 import numpy as np
 
-from ..config.schema import Gt
+from ..config.limits import SensorRate
 from ..frames import R_from_quat_xyzw
 from ..phases import Phase
 from ..world import StepContext
@@ -26,7 +26,7 @@ GROUND_TRUTH_VARIANCE = 1e-6
 class OdometrySensor(SensorSpec):
     """World-file key ``odometry``."""
 
-    rate_hz: Annotated[float, Gt(0.0)] = 50.0
+    rate_hz: SensorRate = 50.0                 # [Hz], config.limits
 
 
 class OdometrySystem(SensorSystemBase):
