@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from unetyemu_ecs import load_world_text
 from unetyemu_ecs.scene import (
     PAD_THICKNESS_M,
     Box,
@@ -240,3 +241,13 @@ def test_nearest_object_measures_to_tree_crowns_and_the_ground(city):
     found, dist = city.nearest_object(np.array([0.0, 0.0, 0.3]), SceneClass.GROUND)
     assert found.object_id == 0 and dist == pytest.approx(0.3)
 
+
+
+@pytest.mark.parametrize("seed", [5, 6, 9, 19])
+def test_a_truck_fits_every_parking_spot_under_the_trees(seed):
+    # GIVEN the default city with these seeds (each once grew a low crown over a parking spot)
+    trucks = "".join(f"  - {{name: t{k}, type: car, preset: truck, pose: {{parking: parking_{k}}}}}\n"
+                     for k in range(1, 9))
+    # WHEN a truck is parked on every spot THEN the world loads: no body starts inside a tree crown
+    world = load_world_text(f"world: {{seed: {seed}}}\nscene: {{generator: urban}}\nvehicles:\n{trucks}")
+    assert len(world.vehicles) == 8

@@ -41,6 +41,11 @@ PARKING_WIDTH_M = 2.5
 PARKING_CORNER_MARGIN_M = 6.0  # keep parked cars this far from the block corner (intersection)
 TREE_CORNER_MARGIN_M = 3.0
 TREE_BUILDING_CLEARANCE_M = 0.3
+# What a parked vehicle may fill around its spot (along, across the street) and up to which height: the
+# truck preset (6.4 x 2.4 m, 3.0 m tall) with a margin. No tree crown reaches into it, so that every
+# preset can be parked on every spot (the world loader refuses bodies that start inside a crown).
+PARKED_ENVELOPE_HALF_M = (3.5, 1.5)
+PARKED_ENVELOPE_HEIGHT_M = 3.5
 
 
 def _box(cx: float, cy: float, z0: float, z1: float, hx: float, hy: float, yaw: float = 0.0) -> Box:
@@ -274,6 +279,14 @@ def generate_urban(params: UrbanParams, rng: np.random.Generator) -> SceneLayout
     if park_xy.shape[0]:
         d = np.hypot(tx_a[:, None] - park_xy[None, :, 0], ty_a[:, None] - park_xy[None, :, 1]).min(axis=1)
         keep &= d > t_trunk + PAD_CLEARANCE_M
+        along, across = PARKED_ENVELOPE_HALF_M
+        across_x = np.array([abs(np.sin(sp.yaw_rad)) > 0.5 for sp in parking.values()])   # spot runs north-south
+        hx = np.where(across_x, across, along)
+        hy = np.where(across_x, along, across)
+        envelopes = np.stack([park_xy[:, 0] - hx, park_xy[:, 1] - hy, park_xy[:, 0] + hx, park_xy[:, 1] + hy], axis=1)
+        crown_bottom = h + t_height - 2.0 * t_crown
+        clear = _rect_distance_m(tx_a, ty_a, envelopes).min(axis=1) > t_crown + TREE_BUILDING_CLEARANCE_M
+        keep &= clear | (crown_bottom > PARKED_ENVELOPE_HEIGHT_M)
     for n, k in enumerate(np.flatnonzero(keep), start=1):
         entries.append((f"tree_{n}", SceneClass.TREE, _tree_shapes(tx_a[k], ty_a[k], h, t_height[k], t_crown[k], t_trunk[k])))
 
