@@ -144,14 +144,31 @@ def _segments(log: LogTable, kind: str) -> tuple[str, list[tuple[int, int, str]]
     return "", []
 
 
-def _shade(axes, t: np.ndarray, segments, colours: dict[str, str]) -> None:
+def _shade(axes, t: np.ndarray, segments, colours: dict[str, tuple[str, str]]) -> None:
+    """Shade each segment's time span over the full height of every axes, one collection per label.
+
+    Each label's spans form one ``PolyCollection`` with ``gid = "shade:<label>"`` (one artist per
+    label and axes, not per span: a long mission has hundreds of steps); a thin line in the label's
+    dark colour marks where each segment starts.
+    """
+    from matplotlib.collections import LineCollection, PolyCollection
+
+    boxes: dict[str, list] = {}
+    starts, start_colours = [], []
     for a, b, lab in segments:
-        t0, t1 = t[a], t[b] if b < t.size else t[-1]
-        for ax in axes:
-            span = ax.axvspan(t0, t1, facecolor=colours[lab][0], lw=0, zorder=0)
-            span.set_gid(f"shade:{lab}")
-            if a > 0:
-                ax.axvline(t0, color=colours[lab][1], lw=0.8, alpha=0.6, zorder=0.5)
+        t0, t1 = float(t[a]), float(t[b] if b < t.size else t[-1])
+        boxes.setdefault(lab, []).append([(t0, 0.0), (t1, 0.0), (t1, 1.0), (t0, 1.0)])
+        if a > 0:
+            starts.append([(t0, 0.0), (t0, 1.0)])
+            start_colours.append(colours[lab][1])
+    for ax in axes:
+        for lab, polys in boxes.items():
+            ax.add_collection(PolyCollection(polys, facecolors=colours[lab][0], linewidths=0, zorder=0,
+                                             transform=ax.get_xaxis_transform(), gid=f"shade:{lab}"),
+                              autolim=False)
+        if starts:
+            ax.add_collection(LineCollection(starts, colors=start_colours, linewidths=0.8, alpha=0.6, zorder=0.5,
+                                             transform=ax.get_xaxis_transform()), autolim=False)
 
 
 def _series(ax, log: LogTable, t, series, ylabel: str, legend: bool = False, scale: float = 1.0) -> None:
@@ -161,7 +178,7 @@ def _series(ax, log: LogTable, t, series, ylabel: str, legend: bool = False, sca
     for col, label, style in series:
         if col in log.columns:
             y = log.columns[col] * scale
-            ax.plot(t, y, label=label, lw=1.3, **{"color": INK, **style})
+            ax.plot(t, y, label=label, lw=1.3, marker="." if y.size == 1 else None, **{"color": INK, **style})
             drawn += int(np.isfinite(y).any())
     ax.set_ylabel(ylabel)
     ax.grid(alpha=0.3)
@@ -303,9 +320,12 @@ def build_figure(log: LogTable, ctx: RunContext | None = None, name: str | None 
         panels = [("altitude z [m]", [("z_m", "z", {})], False, 1.0),
                   ("speed [m/s]", [("speed_m_s", "speed", {})], False, 1.0)]
     n = len(panels)
-    fig = Figure(figsize=(15, 2.1 * n + 1.6), layout="constrained")
+    height_in = 2.1 * n + 1.6
+    track_in = 5.8      # a square track ~4.4 in wide in the right column, plus its title, labels and legend
+    fig = Figure(figsize=(15, height_in), layout="constrained")
     outer = fig.add_gridspec(1, 2, width_ratios=[2.2, 1.0])
-    left, right = outer[0].subgridspec(n, 1), outer[1].subgridspec(2, 1, height_ratios=[1.4, 1.0])
+    left, right = outer[0].subgridspec(n, 1), outer[1].subgridspec(
+        2, 1, height_ratios=[track_in, max(1.5, height_in - 0.8 - track_in)])
     axes = [fig.add_subplot(left[0])]
     axes += [fig.add_subplot(left[i], sharex=axes[0]) for i in range(1, n)]
     ax_track, ax_info = fig.add_subplot(right[0]), fig.add_subplot(right[1])
@@ -318,6 +338,8 @@ def build_figure(log: LogTable, ctx: RunContext | None = None, name: str | None 
     for ax in axes[:-1]:
         ax.tick_params(labelbottom=False)
     axes[-1].set_xlabel("sim time [s]")
+    if t[-1] > t[0]:
+        axes[0].set_xlim(t[0], t[-1])
     if kind == "drone" and "payload_kg" in log.columns:
         payload = log.columns["payload_kg"]
         on = np.flatnonzero(payload > 0)
@@ -348,7 +370,7 @@ def plot_log(path: Path, out_png: Path | None = None, ctx: RunContext | None = N
     try:
         log = read_log(path)
     except LogError as exc:
-        return None, [str(exc)]
+        return None, [f"{exc} (file skipped)"]
     notes = list(log.notes)
     if len(log) == 0:
         return None, notes

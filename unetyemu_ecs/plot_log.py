@@ -10,13 +10,15 @@ from __future__ import annotations
 
 import csv
 import math
+from array import array
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 TEXT_COLUMNS = frozenset({"mode", "mission_step_type", "drive_mode"})   # every other column is a number
-MAX_LOG_BYTES = 2 * 1024**3      # a 10 Hz log of one vehicle grows by ~10 MB per simulated hour
+MAX_LOG_BYTES = 512 * 1024**2    # a 10 Hz log of one vehicle grows by ~10 MB per simulated hour
+MAX_HEADER_BYTES = 64 * 1024
 MAX_LISTED_LINES = 12            # line numbers named per reason before "and N more"
 
 
@@ -72,7 +74,7 @@ def _parse_number(text: str) -> float | None:
 
 
 def read_log(path: Path) -> LogTable:
-    """Read the rows of ``path`` that are complete and well formed.
+    """Read the rows of ``path`` that are complete and well formed, one line at a time.
 
     Raises
     ------
@@ -85,18 +87,19 @@ def read_log(path: Path) -> LogTable:
     try:
         size = path.stat().st_size
         if size > MAX_LOG_BYTES:
-            raise LogError(f"{path}: {size / 1024**3:.1f} GiB is larger than the {MAX_LOG_BYTES / 1024**3:g} GiB "
+            raise LogError(f"{path}: {size / 1024**2:.0f} MiB is more than the {MAX_LOG_BYTES / 1024**2:.0f} MiB "
                            "a vehicle log can plausibly reach; not read")
-        raw = path.read_bytes()
+        with open(path, "rb") as fh:
+            return _read_lines(path, fh)
     except OSError as exc:
         raise LogError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    if not raw:
+
+
+def _read_lines(path: Path, fh) -> LogTable:
+    first = fh.readline(MAX_HEADER_BYTES)
+    if not first:
         raise LogError(f"{path}: empty file")
-    chunks = raw.split(b"\n")
-    unterminated = chunks[-1] != b""     # a complete log ends with its row terminator
-    if not unterminated:
-        chunks.pop()
-    header = _decode_header(path, chunks[0])
+    header = _decode_header(path, first)
     if len(set(header)) != len(header):
         dup = sorted({h for h in header if header.count(h) > 1})
         raise LogError(f"{path}:1: header repeats column(s) {', '.join(dup)}")
@@ -105,59 +108,71 @@ def read_log(path: Path) -> LogTable:
     num_idx = [j for j, h in enumerate(header) if h not in TEXT_COLUMNS]
     t_idx = header.index("time_s")
     skipped: dict[str, list[int]] = {}
-    kept_rows: list[list[str]] = []
-    kept_lines: list[int] = []
-    last = len(chunks)
-    for lineno, chunk in enumerate(chunks[1:], start=2):
-        if lineno == last and unterminated:
-            skipped.setdefault("the last line is incomplete (no line end: the run was probably killed while "
-                               "writing it)", []).append(lineno)
-            continue
+    numbers = array("d")                      # kept rows x num_idx, row-major
+    texts: list[list[str]] = [[] for _ in text_idx]
+    kept_lines = array("q")
+    n_lines = 1
+    for lineno, chunk in enumerate(fh, start=2):
+        n_lines = lineno
         reason = None
-        try:
-            text = chunk.rstrip(b"\r").decode("utf-8")
-        except UnicodeDecodeError:
-            reason = "not UTF-8 text"
+        if not chunk.endswith(b"\n"):         # only the last line can lack its row end
+            reason = "the last line is incomplete (no line end: the run was probably killed while writing it)"
         else:
-            if not text.strip():
-                reason = "blank"
-            elif "\0" in text:
-                reason = "contains NUL bytes"
+            try:
+                text = chunk.rstrip(b"\r\n").decode("utf-8")
+            except UnicodeDecodeError:
+                reason = "not UTF-8 text"
             else:
-                fields = next(csv.reader([text]), [])
-                if len(fields) != n_cols:
-                    reason = f"wrong number of fields (expected {n_cols})"
-                elif any(_parse_number(fields[j]) is None for j in num_idx):
-                    reason = "a numeric column holds something that is not a number"
-                elif not math.isfinite(float(fields[t_idx])):
-                    reason = "time_s is not a finite number"
+                reason, fields, row = _check_row(text, n_cols, num_idx, t_idx)
         if reason is not None:
             skipped.setdefault(reason, []).append(lineno)
             continue
-        kept_rows.append(fields)
+        numbers.extend(row)
+        for k, j in enumerate(text_idx):
+            texts[k].append(fields[j])
         kept_lines.append(lineno)
     notes = [f"{path}: skipped line{'s' if len(nums) > 1 else ''} {line_ranges(nums)}: {why}"
              for why, nums in skipped.items()]
+    lines = np.frombuffer(kept_lines, dtype=np.int64).copy() if kept_lines else np.empty(0, dtype=np.int64)
+    table = np.frombuffer(numbers, dtype=np.float64).reshape(lines.size, len(num_idx)) if numbers else \
+        np.empty((lines.size, len(num_idx)))
     columns: dict[str, np.ndarray] = {}
-    for j in num_idx:
-        values = np.array([float(r[j]) for r in kept_rows], dtype=np.float64)
+    for k, j in enumerate(num_idx):
+        values = table[:, k].copy()
         bad = ~np.isfinite(values)
         if bad.any():
-            bad_lines = [int(n) for n in np.asarray(kept_lines)[bad]]
-            notes.append(f"{path}: column {header[j]}: non-finite value on line{'s' if len(bad_lines) > 1 else ''} "
-                         f"{line_ranges(bad_lines)}, not drawn")
+            notes.append(f"{path}: column {header[j]}: non-finite value on line{'s' if bad.sum() > 1 else ''} "
+                         f"{line_ranges([int(n) for n in lines[bad]])}, not drawn")
             values[bad] = np.nan
         columns[header[j]] = values
-    for j in text_idx:
-        columns[header[j]] = np.array([r[j] for r in kept_rows], dtype=object)
-    if not kept_rows:
-        notes.append(f"{path}: no usable data rows" + ("" if len(chunks) > 1 else " (header only)"))
-    return LogTable(path=path, columns=columns, lines=np.array(kept_lines, dtype=np.int64), notes=notes)
+    for k, j in enumerate(text_idx):
+        columns[header[j]] = np.array(texts[k], dtype=object)
+    if lines.size == 0:
+        notes.append(f"{path}: no usable data rows" + ("" if n_lines > 1 else " (header only)"))
+    return LogTable(path=path, columns=columns, lines=lines, notes=notes)
+
+
+def _check_row(text: str, n_cols: int, num_idx: list[int],
+               t_idx: int) -> tuple[str | None, list[str], list[float]]:
+    """Return (why the line is unusable or None, its fields, its numbers in ``num_idx`` order)."""
+    if not text.strip():
+        return "blank", [], []
+    if "\0" in text:
+        return "contains NUL bytes", [], []
+    fields = next(csv.reader([text]), [])
+    if len(fields) != n_cols:
+        return f"wrong number of fields (expected {n_cols})", [], []
+    row = [_parse_number(fields[j]) for j in num_idx]
+    if any(v is None for v in row):
+        return "a numeric column holds something that is not a number", [], []
+    if not math.isfinite(float(fields[t_idx])):
+        return "time_s is not a finite number", [], []
+    return None, fields, row
 
 
 def _decode_header(path: Path, chunk: bytes) -> list[str]:
     try:
-        text = chunk.rstrip(b"\r").decode("utf-8")
+        text = chunk.rstrip(b"\r\n").decode("utf-8-sig")      # -sig: a spreadsheet may have added a BOM
     except UnicodeDecodeError:
         raise LogError(f"{path}:1: not UTF-8 text, so not a vehicle log") from None
     fields = [f.strip() for f in next(csv.reader([text.replace("\0", "")]), [])]

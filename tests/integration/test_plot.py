@@ -204,6 +204,16 @@ def test_directory_with_nothing_plottable_is_an_error_naming_each_file_and_why(t
     assert "v.csv" in str(err.value) and why in str(err.value)
 
 
+def test_one_row_log_and_a_header_with_a_byte_order_mark_still_plot(tmp_path):
+    # GIVEN a log with a single row, and a log re-saved by a spreadsheet (BOM before the header)
+    write_log(tmp_path / "one.csv", DRONE_HEADER, drone_rows()[:1])
+    write_log(tmp_path / "bom.csv", DRONE_HEADER, drone_rows())
+    (tmp_path / "bom.csv").write_bytes(b"\xef\xbb\xbf" + (tmp_path / "bom.csv").read_bytes())
+    # WHEN plotted THEN both get a PNG and nothing is reported skipped
+    result = plot_run(tmp_path)
+    assert sorted(result) == [tmp_path / "bom.png", tmp_path / "one.png"] and not result.skipped
+
+
 def test_cli_exits_2_with_a_message_for_a_missing_or_empty_directory(tmp_path, capsys):
     # GIVEN a path that does not exist and a directory with no CSV
     # WHEN `unetyemu plot` is run on each THEN it exits 2 and says what is wrong, without a traceback
@@ -233,9 +243,10 @@ def test_every_mission_step_type_is_shaded_in_its_own_clearly_distinct_colour(tm
     # WHEN the shaded spans are collected by the step type they mark
     spans: dict[str, set] = {}
     for ax in fig.axes:
-        for patch in ax.patches:
-            if (patch.get_gid() or "").startswith("shade:"):
-                spans.setdefault(patch.get_gid()[6:], set()).add(_over_white(patch.get_facecolor()))
+        for artist in [*ax.patches, *ax.collections]:
+            if (artist.get_gid() or "").startswith("shade:"):
+                for rgba in np.atleast_2d(artist.get_facecolor()):
+                    spans.setdefault(artist.get_gid()[6:], set()).add(_over_white(rgba))
     # THEN every type has one colour, the legend names every type in that colour,
     assert set(spans) == set(STEP_TYPES) and all(len(c) == 1 for c in spans.values())
     colour = {k: next(iter(c)) for k, c in spans.items()}
