@@ -233,7 +233,8 @@ class Simulation:
             except ValueError as exc:
                 notices.put((vehicle, topic, str(exc)))
 
-        self._ros2_bridge = open_bridge(self.ros2_backend, kinds, COMMAND_TOPICS, on_message)
+        self._ros2_bridge = open_bridge(self.ros2_backend, kinds, COMMAND_TOPICS, on_message,
+                                        {"world.name": world.spec.world.name, "world.seed": world.spec.world.seed})
         return Ros2PublisherSystem(self._ros2_bridge, notices, hidden)
 
     @property

@@ -187,7 +187,18 @@ def test_the_simulator_is_a_ros2_node_whose_endpoints_announce_their_jazzy_type_
         writer = got["writers"][topic]
         assert writer["gid"][:32] in writer_gids, topic
         assert writer["user_data"] == f"typehash={typestore().hash_rihs01(type_name)};", topic
-    assert len(node.reader_gid_seq) == 4 * len(vehicles)   # mission, target, teleop, cmd_vel of every vehicle
+    # readers: mission, target, teleop, cmd_vel of every vehicle, and the 6 parameter service requests
+    assert len(node.reader_gid_seq) == 4 * len(vehicles) + 6
+
+
+def test_the_ros_discovery_info_writer_announces_its_type_hash_as_rmw_does(exchange):
+    # GIVEN the simulator's node seen by a peer  THEN the writer of ros_discovery_info carries
+    # typehash= in its USER_DATA (rmw_cyclonedds warns "Failed to parse type hash" without it)
+    _, got, _, _ = exchange
+    from unetyemu_ecs.sensors.messages import typestore
+    info = deserialize(bytes.fromhex(got["graph"][-1]), "rmw_dds_common/msg/ParticipantEntitiesInfo")
+    ours = [ud for gid, ud in got["graph_writers"].items() if gid[:24] == bytes(info.gid.data[:12]).hex()]
+    assert ours == [f"typehash={typestore().hash_rihs01('rmw_dds_common/msg/ParticipantEntitiesInfo')};"]
 
 
 def test_keyboard_teleop_in_a_terminal_drives_the_drone_over_ros2():

@@ -3,7 +3,8 @@
 Usage: python3 listen.py SECONDS TOPIC=TYPE [TOPIC=TYPE ...]
 Listens for at most SECONDS, and stops earlier once data has flowed and then stopped for 1.5 s
 (the publisher is gone). Prints one JSON object: per topic the number of samples, the CDR of the last one (hex) and the
-data representations that the matched writers announced (from DDS discovery).
+data representations that the matched writers announced (from DDS discovery), and the
+ros_discovery_info samples and writers (their USER_DATA).
 """
 
 from __future__ import annotations
@@ -72,6 +73,7 @@ def main() -> None:
     graph = DataReader(dp, Topic(dp, "ros_discovery_info", idl("rmw_dds_common/msg/ParticipantEntitiesInfo")),
                        qos=graph_qos)
     graph_info: list[str] = []
+    graph_writers: dict[str, str] = {}         # the ros_discovery_info writers matched: gid -> USER_DATA
     print("ready", flush=True)
     counts = {topic: 0 for topic in wanted}
     last: dict[str, bytes] = {}
@@ -96,9 +98,14 @@ def main() -> None:
                                          "user_data": user.data.decode() if user else "",
                                          "gid": bytes(pub.key.bytes).hex()}
         graph_info += [g.serialize(use_version_2=False).hex() for g in graph.take(N=10) if hasattr(g, "serialize")]
+        for handle in graph.get_matched_publications():
+            pub = graph.get_matched_publication_data(handle)
+            user = pub.qos[Policy.Userdata]
+            graph_writers[bytes(pub.key.bytes).hex()] = user.data.decode() if user else ""
         time.sleep(0.01)
     print(json.dumps({"counts": counts, "last": {k: v.hex() for k, v in last.items()},
-                      "writers": representation, "graph": graph_info}), flush=True)
+                      "writers": representation, "graph": graph_info,
+                      "graph_writers": graph_writers}), flush=True)
 
 
 if __name__ == "__main__":

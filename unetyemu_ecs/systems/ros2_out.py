@@ -15,6 +15,7 @@ from ..sensors.messages import msg_type, stamp
 from ..world import StepContext
 
 STATUS_HZ = 10.0            # how often mission status is checked (published when it changes)
+IDLE_STATUS = {"mission": None, "state": "idle"}      # a drone without a mission
 ROSOUT_WARN = 30            # rcl_interfaces/Log WARN
 NODE_NAME = "unetyemu_sim"
 
@@ -24,9 +25,11 @@ class Ros2PublisherSystem(esper.Processor):
 
     Phase: OUTPUTS (order 50, after the sensors and TF). Publishes: every sample of
     ``services.sensors.this_step`` on its topic, ``/clock`` each step, ``/<v>/mission/status``
-    (std_msgs/String JSON) when a drone's mission status changes (and ``{"state": "rejected",
-    "reason": ...}`` when a mission sent over ROS 2 is rejected), and every rejected command as a
-    WARN on ``/rosout`` (also in the event log). Samples marked ``ros2=False`` (a sensor or vehicle
+    (std_msgs/String JSON, latched: TransientLocal, KeepLast(1)) for every drone at the first step
+    (``{"mission": null, "state": "idle"}`` without a mission) and whenever it changes (and
+    ``{"state": "rejected", "reason": ...}`` when a mission sent over ROS 2 is rejected), and
+    every rejected command as a WARN on ``/rosout`` (TransientLocal, KeepLast(1000), as rcl
+    writes it; also in the event log). Samples marked ``ros2=False`` (a sensor or vehicle
     switched off ROS 2 in the world file) and the mission status of ``hidden`` vehicles stay local.
     Rejections found on the transport's thread arrive through ``notices`` (a thread-safe queue of
     ``(vehicle, topic, reason)``). A message that cannot be published is reported once per topic in
@@ -74,10 +77,11 @@ class Ros2PublisherSystem(esper.Processor):
         if t + 1e-9 >= self._next_status_s:
             self._next_status_s = t + 1.0 / STATUS_HZ
             String = msg_type("std_msgs/msg/String")
-            for ent, (ident, rt) in esper.get_components(Identity, MissionRuntime):
-                if ident.name in self.hidden:
+            for ent, ident in esper.get_component(Identity):
+                if ident.kind != "quadrotor" or ident.name in self.hidden:
                     continue
-                text = json.dumps(rt.status(), sort_keys=True)
+                rt = esper.try_component(ent, MissionRuntime)
+                text = json.dumps(rt.status() if rt is not None else IDLE_STATUS, sort_keys=True)
                 if self._status.get(ident.name) != text:
                     self._status[ident.name] = text
                     self._publish(ctx, f"/{ident.name}/mission/status", String(data=text))

@@ -2,7 +2,8 @@
 
 Both backends have the same shape: ``publish(topic, rosbags_msg)``, ``topics``, ``close()``, and
 they call ``on_message(vehicle, topic_kind, topic, msg)`` from their own thread for every sample on
-a vehicle's command topics (``msg`` has the fields of the topic's type).
+a vehicle's command topics (``msg`` is a rosbags message of the topic's type, or an
+:class:`~.inbound.RejectedSample` for a sample that could not be decoded).
 """
 
 from __future__ import annotations
@@ -24,12 +25,17 @@ def resolve_backend(choice: str) -> str:
     return choice
 
 
-def open_bridge(backend: str, vehicles: dict[str, str], topic_types: dict[str, str], on_message: Any) -> Any:
-    """Start backend ``rclpy`` or ``dds`` (as :func:`resolve_backend` gives it); raises :class:`Ros2Error`."""
+def open_bridge(backend: str, vehicles: dict[str, str], topic_types: dict[str, str], on_message: Any,
+                parameters: dict[str, Any] | None = None) -> Any:
+    """Start backend ``rclpy`` or ``dds`` (as :func:`resolve_backend` gives it); raises :class:`Ros2Error`.
+
+    ``parameters``: read-only node parameters (name -> bool, int, float or str), e.g. the world's
+    name and seed; both backends add ``use_sim_time`` (true).
+    """
     if backend == "rclpy":
-        return RclpyBridge(vehicles, topic_types, on_message)
+        return RclpyBridge(vehicles, topic_types, on_message, parameters)
     if backend == "dds":
-        return DdsBridge(vehicles, topic_types, on_message)
+        return DdsBridge(vehicles, topic_types, on_message, parameters)
     raise ValueError(f"no ROS 2 bridge for backend {backend!r}")
 
 

@@ -12,30 +12,124 @@ from ``ROS_DOMAIN_ID`` (default 0).
 from __future__ import annotations
 
 import os
+from pathlib import Path
 from typing import Any
+from xml.sax.saxutils import quoteattr
 
-from ...sensors.messages import msg_type, serialize, typestore
+from ...sensors.messages import deserialize, msg_type, serialize, typestore
 from .dds_types import idl_type, to_idl
 
 NODE_NAME = "unetyemu_sim"
 NODE_NAMESPACE = "/"
 DISCOVERY_TOPIC = "ros_discovery_info"     # no rt/ prefix: an rmw-level topic
 
-LOOPBACK_CONFIG = """<CycloneDDS><Domain id="any">
-  <General><Interfaces><NetworkInterface name="lo"/></Interfaces><AllowMulticast>false</AllowMulticast>
-    <MaxMessageSize>65000B</MaxMessageSize><FragmentSize>62000B</FragmentSize></General>
-  <Discovery><ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>100</MaxAutoParticipantIndex>
-    <Peers><Peer address="127.0.0.1"/></Peers></Discovery>
-  <Internal><BurstSize><MaxInitTransmit>150000</MaxInitTransmit><MaxRexmit>150kB</MaxRexmit></BurstSize>
-    <HeartbeatInterval min="5ms" minsched="10ms">20ms</HeartbeatInterval></Internal>
-</Domain></CycloneDDS>"""
-# Why the Internal settings: a 640x480 image is 15 fragments of 62 kB; sent in one burst it overflows a
-# reader's default 212 kB socket buffer (Fast DDS with default buffers), and with the default 100 ms
-# heartbeat the lost fragments came back so slowly that images were superseded (KeepLast(10)) and
-# lost: 0-12 of 30 per run. Bursts of at most 150 kB and heartbeats every 20 ms while data is
-# unacknowledged: no loss at 10 and 30 Hz (tests/integration/test_ros2_fastdds.py).
+# Settings every configuration keeps: a 640x480 image is 15 fragments of 62 kB; sent in one burst it
+# overflows a reader's default 212 kB socket buffer (Fast DDS with default buffers), and with the
+# default 100 ms heartbeat the lost fragments came back so slowly that images were superseded
+# (KeepLast(10)) and lost: 0-12 of 30 per run. Bursts of at most 150 kB and heartbeats every 20 ms
+# while data is unacknowledged: no loss at 10 and 30 Hz (tests/integration/test_ros2_fastdds.py).
+_SIZES = "<MaxMessageSize>65000B</MaxMessageSize><FragmentSize>62000B</FragmentSize>"
+_INTERNAL = ("<Internal><BurstSize><MaxInitTransmit>150000</MaxInitTransmit><MaxRexmit>150kB</MaxRexmit></BurstSize>"
+             '<HeartbeatInterval min="5ms" minsched="10ms">20ms</HeartbeatInterval></Internal>')
+_INDEXED = "<ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>100</MaxAutoParticipantIndex>"
 
-TRANSIENT_LOCAL_TOPICS = ("/tf_static",)
+RANGES = ("", "SUBNET", "LOCALHOST", "OFF", "SYSTEM_DEFAULT")
+
+
+def _host_interfaces() -> list[str]:
+    """Non-loopback network interfaces that are up and can multicast (Linux ``/sys/class/net``)."""
+    found = []
+    for flags in sorted(Path("/sys/class/net").glob("*/flags")):
+        try:
+            value = int(flags.read_text(), 16)
+        except (OSError, ValueError):
+            continue
+        if value & 0x1 and value & 0x40 and value & 0x1000 and not value & 0x8:   # UP, RUNNING, MULTICAST, !LOOPBACK
+            found.append(flags.parent.name)
+    return found
+
+
+def static_peers_from_env() -> list[str]:
+    """``ROS_STATIC_PEERS`` as a list of addresses (semicolon-separated, as ROS 2 reads it)."""
+    peers = [p.strip() for p in os.environ.get("ROS_STATIC_PEERS", "").split(";") if p.strip()]
+    for peer in peers:
+        if any(c in peer for c in "<>&\"' ") or len(peer) > 253:
+            raise Ros2Error(f"ROS_STATIC_PEERS: {peer!r} is not a host name or address")
+    return peers
+
+
+def discovery_range_from_env() -> str:
+    """``ROS_AUTOMATIC_DISCOVERY_RANGE`` checked; ``""`` when unset (the simulator's default)."""
+    value = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "").strip().upper()
+    if value not in RANGES:
+        raise Ros2Error(f"ROS_AUTOMATIC_DISCOVERY_RANGE must be one of SUBNET, LOCALHOST, OFF, SYSTEM_DEFAULT, "
+                        f"got {os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE']!r}")
+    return value
+
+
+def dds_config(discovery_range: str, static_peers: list[str], host_interfaces: list[str] | None = None) -> str:
+    """The cyclonedds XML for a ROS 2 discovery range (``""`` = unset) and static peers.
+
+    - unset: multicast discovery on the host's default interface *and* loopback, with a multicast
+      TTL of 0: a default-configured ROS 2 node on this machine finds the simulator, the
+      simulator's multicast never leaves the machine, and its unicast goes to the addresses of
+      participants that found it (on this machine: its own addresses).
+    - ``SUBNET``: the same with cyclonedds' normal TTL (32): the LAN sees the simulator.
+    - ``LOCALHOST``: loopback only, no multicast, unicast discovery on 127.0.0.1.
+    - ``OFF``: no automatic discovery (loopback, no multicast); only static peers.
+    - ``SYSTEM_DEFAULT``: cyclonedds' own network defaults.
+    Static peers are added in every range. Every variant keeps the large-message settings.
+    """
+    if host_interfaces is None:
+        host_interfaces = _host_interfaces()
+    peers = "".join(f"<Peer address={quoteattr(p)}/>" for p in static_peers)
+    if discovery_range in ("", "SUBNET"):
+        auto = '<NetworkInterface autodetermine="true"/>' if host_interfaces else ""
+        ttl = "<MulticastTimeToLive>0</MulticastTimeToLive>" if discovery_range == "" else ""
+        general = (f'<Interfaces>{auto}<NetworkInterface name="lo" multicast="true"/></Interfaces>{ttl}')
+        discovery = f'{_INDEXED}<Peers><Peer address="127.0.0.1"/>{peers}</Peers>'
+    elif discovery_range == "LOCALHOST":
+        general = '<Interfaces><NetworkInterface name="lo"/></Interfaces><AllowMulticast>false</AllowMulticast>'
+        discovery = f'{_INDEXED}<Peers><Peer address="127.0.0.1"/>{peers}</Peers>'
+    elif discovery_range == "OFF":
+        general = '<Interfaces><NetworkInterface name="lo"/></Interfaces><AllowMulticast>false</AllowMulticast>'
+        discovery = f"{_INDEXED}<Peers>{peers}</Peers>" if peers else "<ParticipantIndex>none</ParticipantIndex>"
+    else:                                                # SYSTEM_DEFAULT
+        general, discovery = "", f"<Peers>{peers}</Peers>" if peers else ""
+    disc = f"<Discovery>{discovery}</Discovery>" if discovery else ""
+    return (f'<CycloneDDS><Domain id="any"><General>{general}{_SIZES}</General>{disc}{_INTERNAL}'
+            f"</Domain></CycloneDDS>")
+
+
+def discovery_description() -> str:
+    """One line for users: how the dds backend is discoverable with the current environment."""
+    if os.environ.get("CYCLONEDDS_URI"):
+        return "network settings from CYCLONEDDS_URI"
+    words = {"": "discoverable on this machine only (multicast TTL 0; ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET "
+                 "opens it to the LAN)",
+             "SUBNET": "discoverable on the LAN (ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET)",
+             "LOCALHOST": "loopback only (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST)",
+             "OFF": "no automatic discovery (ROS_AUTOMATIC_DISCOVERY_RANGE=OFF)",
+             "SYSTEM_DEFAULT": "cyclonedds network defaults (ROS_AUTOMATIC_DISCOVERY_RANGE=SYSTEM_DEFAULT)"}
+    peers = static_peers_from_env()
+    return words[discovery_range_from_env()] + (f", static peers {', '.join(peers)}" if peers else "")
+
+
+LOOPBACK_CONFIG = dds_config("LOCALHOST", [])
+
+LATCHED_DEPTH = {"/tf_static": 1, "/rosout": 1000}   # TransientLocal topics and their KeepLast depth (as rcl/tf2)
+TRANSIENT_LOCAL_TOPICS = tuple(LATCHED_DEPTH)
+
+
+def latched_depth(ros_topic: str) -> int | None:
+    """KeepLast depth of a TransientLocal topic, or None for a Volatile one (KeepLast(10)).
+
+    ``/tf_static`` 1 (tf2's static broadcaster), ``/rosout`` 1000 (rcl's logger), every
+    ``/<v>/mission/status`` 1 (latched: a late subscriber gets the current status).
+    """
+    if ros_topic in LATCHED_DEPTH:
+        return LATCHED_DEPTH[ros_topic]
+    return 1 if ros_topic.endswith("/mission/status") else None
 MAX_BLOCKING_MS = 20     # a reliable write waits at most this for a slow (or dead) reader, then fails
 
 
@@ -56,11 +150,12 @@ def domain_from_env() -> int:
 
 
 # The one place that touches cyclonedds internals (pinned: cyclonedds==11.0.1): writing a sample that
-# is already serialised. Without it (another version), publishing falls back to the public path.
+# is already serialised, and taking samples as bytes. Without it (another version), publishing falls back to the public path.
 try:
+    from cyclonedds._clayer import ddspy_take as _RAW_TAKE
     from cyclonedds._clayer import ddspy_write as _RAW_WRITE
 except ImportError:  # pragma: no cover - depends on the installed cyclonedds
-    _RAW_WRITE = None
+    _RAW_TAKE = _RAW_WRITE = None
 
 
 def _write_raw(writer: Any, cdr: bytes) -> None:
@@ -99,14 +194,17 @@ class DdsPublisher:
         from cyclonedds.core import Policy
         from cyclonedds.qos import Qos
 
+        config = None if os.environ.get("CYCLONEDDS_URI") else dds_config(discovery_range_from_env(),
+                                                                          static_peers_from_env())
         try:
             # the Domain object must live as long as the participant: it holds the configuration
-            self._domain = None if os.environ.get("CYCLONEDDS_URI") else Domain(domain_id, LOOPBACK_CONFIG)
+            self._domain = None if config is None else Domain(domain_id, config)
             self.participant = DomainParticipant(domain_id, qos=Qos(Policy.Userdata(b"enclave=/;")))
         except Exception as exc:        # cyclonedds reports a bad CYCLONEDDS_URI or interface this way
             raise Ros2Error(f"cannot start DDS on domain {domain_id}: {exc}") from exc
         self._writers: dict[str, Any] = {}
-        self.reader_gids: list[bytes] = []              # readers of this node (the command listener's)
+        self.reader_gids: list[bytes] = []              # readers of this node (commands, service requests)
+        self.writer_gids: list[bytes] = []              # writers besides the topic writers (service replies)
         self._graph = self._discovery_writer()
 
     @staticmethod
@@ -117,10 +215,10 @@ class DdsPublisher:
         from cyclonedds.qos import Qos
         from cyclonedds.util import duration
 
-        durable = ros_topic in TRANSIENT_LOCAL_TOPICS
+        depth = latched_depth(ros_topic)
         policies = [Policy.Reliability.Reliable(duration(milliseconds=MAX_BLOCKING_MS)),
-                    Policy.Durability.TransientLocal if durable else Policy.Durability.Volatile,
-                    Policy.History.KeepLast(1 if durable else 10),
+                    Policy.Durability.TransientLocal if depth else Policy.Durability.Volatile,
+                    Policy.History.KeepLast(depth or 10),
                     Policy.DataRepresentation(use_cdrv0_representation=True)]
         if type_name is not None:
             policies.append(Policy.Userdata(f"typehash={typestore().hash_rihs01(type_name)};".encode()))
@@ -133,9 +231,10 @@ class DdsPublisher:
         from cyclonedds.topic import Topic
         from cyclonedds.util import duration
 
-        qos = Qos(Policy.Reliability.Reliable(duration(milliseconds=MAX_BLOCKING_MS)), Policy.Durability.TransientLocal,
-                  Policy.History.KeepLast(1), Policy.DataRepresentation(use_cdrv0_representation=True))
         name = "rmw_dds_common/msg/ParticipantEntitiesInfo"
+        qos = Qos(Policy.Reliability.Reliable(duration(milliseconds=MAX_BLOCKING_MS)), Policy.Durability.TransientLocal,
+                  Policy.History.KeepLast(1), Policy.DataRepresentation(use_cdrv0_representation=True),
+                  Policy.Userdata(f"typehash={typestore().hash_rihs01(name)};".encode()))
         return DataWriter(self.participant, Topic(self.participant, DISCOVERY_TOPIC, idl_type(name), qos=qos), qos=qos)
 
     def announce(self) -> None:
@@ -144,7 +243,7 @@ class DdsPublisher:
         node = msg_type("rmw_dds_common/msg/NodeEntitiesInfo")(
             node_namespace=NODE_NAMESPACE, node_name=NODE_NAME,
             reader_gid_seq=[Gid(data=_gid(g)) for g in self.reader_gids],
-            writer_gid_seq=[Gid(data=_gid(w.guid.bytes)) for w in self._writers.values()])
+            writer_gid_seq=[Gid(data=_gid(g)) for g in [w.guid.bytes for w in self._writers.values()] + self.writer_gids])
         info = msg_type("rmw_dds_common/msg/ParticipantEntitiesInfo")(
             gid=Gid(data=_gid(self.participant.guid.bytes)), node_entities_info_seq=[node])
         if _RAW_WRITE is not None:
@@ -192,30 +291,60 @@ class DdsPublisher:
 
 
 POLL_S = 0.01
+MAX_REASON_CHARS = 300          # a rejection reason quotes at most this much of an exception's text
+
+
+def take_raw(reader: Any, n: int = 32) -> list[bytes]:
+    """Take up to ``n`` valid samples of ``reader`` as their XCDR bytes (with the encapsulation header),
+    without decoding them: a sample that cannot be decoded must not cost the others."""
+    if _RAW_TAKE is None:                     # pragma: no cover - another cyclonedds: decode, then re-encode
+        return [s.serialize(use_version_2=False) for s in reader.take(N=n) if hasattr(s, "serialize")]
+    from cyclonedds.core import DDSException, InstanceState, SampleState, ViewState
+
+    ret = _RAW_TAKE(reader._ref, SampleState.Any | ViewState.Any | InstanceState.Any, n)
+    if isinstance(ret, int):
+        raise DDSException(ret, f"while taking samples of {reader!r}")
+    return [bytes(data) for data, info in ret if info.valid_data]   # invalid samples: a writer went away
+
+
+def _reason(exc: BaseException) -> str:
+    text = f"{type(exc).__name__}: {exc}"
+    return text if len(text) <= MAX_REASON_CHARS else text[:MAX_REASON_CHARS] + "..."
 
 
 class DdsCommandListener:
-    """Reads the command topics of every vehicle on its own thread and hands each message to
-    ``on_message(vehicle, topic_kind, topic, sample)``; the loop never waits for DDS."""
+    """Reads the command topics of every vehicle on its own thread and hands each message (a rosbags
+    message of the topic's type) to ``on_message(vehicle, topic_kind, topic, msg)``; the loop never
+    waits for DDS.
+
+    The thread survives any sample: one that does not decode as the topic's type (bytes that are
+    not CDR, a string that is not UTF-8, a length beyond the data) is handed over as a
+    :class:`~.inbound.RejectedSample` carrying the reason, which the command API rejects like any
+    bad command (event log, ``/rosout``); an exception raised by ``on_message`` itself is handed
+    over the same way. ``services`` are further ``(reader, handle(cdr))`` pairs served on the same
+    thread (the parameter services).
+    """
 
     def __init__(self, publisher: DdsPublisher, vehicles: dict[str, str], topic_types: dict[str, str],
-                 on_message: Any) -> None:
+                 on_message: Any, services: list[tuple[Any, Any]] = ()) -> None:
         import threading
 
         from cyclonedds.sub import DataReader
         from cyclonedds.topic import Topic
 
         dp = publisher.participant
-        self._readers: list[tuple[Any, str, str, str]] = []          # reader, vehicle, topic kind, topic
+        self._readers: list[tuple[Any, str, str, str, str]] = []   # reader, vehicle, topic kind, topic, type
         for vehicle in vehicles:
             for topic_kind, type_name in topic_types.items():
                 ros_topic = f"/{vehicle}/{topic_kind}"
                 qos = DdsPublisher.qos_for(ros_topic, type_name)
                 reader = DataReader(dp, Topic(dp, dds_topic_name(ros_topic), idl_type(type_name), qos=qos), qos=qos)
                 publisher.reader_gids.append(reader.guid.bytes)
-                self._readers.append((reader, vehicle, topic_kind, ros_topic))
+                self._readers.append((reader, vehicle, topic_kind, ros_topic, type_name))
         publisher.announce()
+        self._services = list(services)
         self._on_message = on_message
+        self.failures = 0                                 # samples or callbacks that raised (reported)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="unetyemu-ros2-commands", daemon=True)
         self._thread.start()
@@ -224,26 +353,86 @@ class DdsCommandListener:
         # polled, not a WaitSet: waiting inside cyclonedds holds the GIL and starves the sim loop;
         # an Event wait releases it (POLL_S of latency, ~10 us of work per reader per poll)
         while not self._stop.wait(POLL_S):
-            for reader, vehicle, topic_kind, ros_topic in self._readers:
-                for sample in reader.take(N=32):
-                    if hasattr(sample, "serialize"):                # skip invalid samples (writer gone)
-                        self._on_message(vehicle, topic_kind, ros_topic, sample)
+            for reader, vehicle, topic_kind, ros_topic, type_name in self._readers:
+                try:
+                    samples = take_raw(reader)
+                except Exception as exc:                 # cyclonedds itself failed: say so, go on
+                    self._deliver(vehicle, topic_kind, ros_topic, _rejected(f"cannot take a sample: {_reason(exc)}"))
+                    continue
+                for cdr in samples:
+                    try:
+                        msg = deserialize(cdr, type_name)
+                    except Exception as exc:
+                        msg = _rejected(f"not a valid {type_name}: {_reason(exc)}")
+                    self._deliver(vehicle, topic_kind, ros_topic, msg)
+            for reader, handle in self._services:
+                try:
+                    for cdr in take_raw(reader):
+                        handle(cdr)
+                except Exception as exc:                 # a bad request: no reply, the server goes on
+                    self.failures += 1
+                    _warn_once(f"ROS 2 service request failed: {_reason(exc)}")
+
+    def _deliver(self, vehicle: str, topic_kind: str, ros_topic: str, msg: Any) -> None:
+        try:
+            self._on_message(vehicle, topic_kind, ros_topic, msg)
+            return
+        except Exception as exc:                      # the callback's own failure is reported as a rejection
+            self.failures += 1
+            reason = f"{_reason(exc)} while handling the sample"
+        try:
+            self._on_message(vehicle, topic_kind, ros_topic, _rejected(reason))
+        except Exception as exc:                      # cannot even report it: stderr, once per kind of failure
+            _warn_once(f"ROS 2 command on {ros_topic} failed: {reason}; reporting it failed too: {_reason(exc)}")
 
     def close(self) -> None:
         self._stop.set()
         self._thread.join(timeout=2.0)
         self._readers.clear()
+        self._services.clear()
+
+
+_WARNED: set[str] = set()
+
+
+def _warn_once(text: str) -> None:
+    import sys
+
+    key = text.split(":", 1)[0]
+    if key not in _WARNED:
+        _WARNED.add(key)
+        print(f"unetyemu: {text}", file=sys.stderr)
+
+
+def _rejected(reason: str) -> Any:
+    from .inbound import RejectedSample
+
+    return RejectedSample(reason)
 
 
 class DdsBridge:
-    """The ``dds`` backend as the simulation uses it: a publisher and the command listener on one participant."""
+    """The ``dds`` backend as the simulation uses it: a publisher, the command listener and the
+    parameter services on one participant.
+
+    Made at start, so that late subscribers find them: ``/rosout`` and every vehicle's
+    ``/<v>/mission/status`` writer (both TransientLocal); ``parameters`` (name -> bool, int, float
+    or str, read-only) are served with ``use_sim_time`` (true: the simulator publishes ``/clock``).
+    """
 
     name = "dds"
 
-    def __init__(self, vehicles: dict[str, str], topic_types: dict[str, str], on_message: Any) -> None:
+    def __init__(self, vehicles: dict[str, str], topic_types: dict[str, str], on_message: Any,
+                 parameters: dict[str, Any] | None = None) -> None:
+        from .dds_params import ParameterServer
+
         self.publisher = DdsPublisher()
         try:
-            self.listener = DdsCommandListener(self.publisher, vehicles, topic_types, on_message)
+            self.publisher.writer("/rosout", "rcl_interfaces/msg/Log")
+            for vehicle in vehicles:
+                self.publisher.writer(f"/{vehicle}/mission/status", "std_msgs/msg/String")
+            self.parameters = ParameterServer(self.publisher, {"use_sim_time": True, **(parameters or {})})
+            self.listener = DdsCommandListener(self.publisher, vehicles, topic_types, on_message,
+                                               self.parameters.services)
         except Exception:
             self.publisher.close()
             raise
@@ -261,4 +450,5 @@ class DdsBridge:
 
 
 __all__ = ["DISCOVERY_TOPIC", "LOOPBACK_CONFIG", "NODE_NAME", "DdsBridge", "DdsCommandListener", "DdsPublisher",
-           "Ros2Error", "dds_topic_name", "domain_from_env"]
+           "Ros2Error", "dds_config", "dds_topic_name", "discovery_description", "discovery_range_from_env",
+           "domain_from_env", "latched_depth", "static_peers_from_env", "take_raw"]

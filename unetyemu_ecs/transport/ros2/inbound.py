@@ -12,12 +12,22 @@ becomes one call of the simulation's command API, which validates it and queues 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 from ...config.schema import ConfigError
 
 COMMAND_TOPICS = {"mission": "std_msgs/msg/String", "target": "std_msgs/msg/Float32MultiArray",
                   "teleop": "std_msgs/msg/Float32MultiArray", "cmd_vel": "geometry_msgs/msg/Twist"}
+
+
+@dataclass(frozen=True, slots=True)
+class RejectedSample:
+    """What a transport hands over for a sample it could not turn into a message (undecodable bytes,
+    a string that is not UTF-8) or that failed while handled: :func:`apply_command` rejects it
+    with ``reason``, so it is reported like any bad command."""
+
+    reason: str
 
 
 def _finite(values: list[float], what: str) -> list[float]:
@@ -29,12 +39,14 @@ def _finite(values: list[float], what: str) -> list[float]:
 
 def apply_command(sim: Any, vehicle: str, kind: str, topic_kind: str, msg: Any,
                   hold_s: float | None = None) -> None:
-    """Turn one inbound message (a cyclonedds struct of the topic's type) into a command of ``sim``.
+    """Turn one inbound message (a rosbags message of the topic's type) into a command of ``sim``.
 
     ``kind`` is the vehicle's kind (``quadrotor`` or ``car``); teleop and cmd_vel lapse ``hold_s``
     seconds after they arrive unless a newer one follows (the vehicle's command timeout; None: held).
     Raises ``ValueError`` with the reason.
     """
+    if isinstance(msg, RejectedSample):
+        raise ValueError(msg.reason)
     try:
         if topic_kind == "mission":
             if kind != "quadrotor":
@@ -71,4 +83,4 @@ def apply_command(sim: Any, vehicle: str, kind: str, topic_kind: str, msg: Any,
         raise ValueError(f"mission rejected: {exc}") from None
 
 
-__all__ = ["COMMAND_TOPICS", "apply_command"]
+__all__ = ["COMMAND_TOPICS", "RejectedSample", "apply_command"]

@@ -6,8 +6,9 @@ node ``/unetyemu_sim`` lives in its own rclpy context, so it neither needs nor d
 bytes (``Publisher.publish`` takes serialised bytes and hands them to the RMW unchanged), and the
 command topics are subscribed raw and decoded with rosbags, so both backends hand
 :func:`~.inbound.apply_command` the same objects. Graph identity, type hashes and discovery are
-rclpy's own. QoS as in :mod:`.dds_backend`: Reliable / Volatile / KeepLast(10), ``/tf_static``
-TransientLocal / KeepLast(1).
+rclpy's own. QoS as in :mod:`.dds_backend`: Reliable / Volatile / KeepLast(10); TransientLocal ``/tf_static``
+(KeepLast(1)), ``/rosout`` (1000) and ``/<v>/mission/status`` (1). Parameters (the world's name
+and seed) are declared read-only on the node, which serves rclpy's parameter services.
 """
 
 from __future__ import annotations
@@ -16,7 +17,8 @@ import threading
 from typing import Any, Callable
 
 from ...sensors.messages import deserialize, serialize
-from .dds_backend import NODE_NAME, TRANSIENT_LOCAL_TOPICS, Ros2Error
+from .inbound import RejectedSample
+from .dds_backend import NODE_NAME, Ros2Error, _reason, latched_depth
 
 OnMessage = Callable[[str, str, str, Any], None]
 
@@ -35,7 +37,8 @@ class RclpyBridge:
 
     name = "rclpy"
 
-    def __init__(self, vehicles: dict[str, str], topic_types: dict[str, str], on_message: OnMessage) -> None:
+    def __init__(self, vehicles: dict[str, str], topic_types: dict[str, str], on_message: OnMessage,
+                 parameters: dict[str, Any] | None = None) -> None:
         try:
             import rclpy
             from rclpy.context import Context
@@ -49,6 +52,7 @@ class RclpyBridge:
             self.node = rclpy.create_node(NODE_NAME, context=self._context)
         except Exception as exc:
             raise Ros2Error(f"cannot start the rclpy node {NODE_NAME!r}: {exc}") from exc
+        self._declare(parameters or {})
         self._publishers: dict[str, Any] = {}
         self._subscriptions = []
         for vehicle in vehicles:
@@ -61,6 +65,15 @@ class RclpyBridge:
         self._executor.add_node(self.node)
         self._thread = threading.Thread(target=self._spin, name="unetyemu-ros2-rclpy", daemon=True)
         self._thread.start()
+
+    def _declare(self, parameters: dict[str, Any]) -> None:
+        """Read-only node parameters, and ``use_sim_time`` true (the simulator publishes ``/clock``)."""
+        from rcl_interfaces.msg import ParameterDescriptor
+        from rclpy.parameter import Parameter
+
+        for name, value in parameters.items():
+            self.node.declare_parameter(name, value, ParameterDescriptor(read_only=True))
+        self.node.set_parameters([Parameter("use_sim_time", Parameter.Type.BOOL, True)])
 
     @staticmethod
     def _msg_class(type_name: str) -> type:
@@ -75,19 +88,25 @@ class RclpyBridge:
     def _qos(topic: str) -> Any:
         from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-        durable = topic in TRANSIENT_LOCAL_TOPICS
-        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1 if durable else 10,
+        depth = latched_depth(topic)
+        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth or 10,
                           reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.TRANSIENT_LOCAL if durable else DurabilityPolicy.VOLATILE)
+                          durability=DurabilityPolicy.TRANSIENT_LOCAL if depth else DurabilityPolicy.VOLATILE)
 
     @staticmethod
     def _callback(vehicle: str, topic_kind: str, topic: str, type_name: str, on_message: OnMessage) -> Callable:
-        def receive(cdr: bytes) -> None:          # executor thread
+        def receive(cdr: bytes) -> None:          # executor thread: must survive any sample
             try:
                 msg = deserialize(bytes(cdr), type_name)
-            except Exception:         # the RMW delivered it as the topic's type, so only a rosbags/ROS 2
-                return                # definition mismatch lands here: nothing that could be applied
-            on_message(vehicle, topic_kind, topic, msg)
+            except Exception as exc:  # e.g. a string that is not UTF-8
+                msg = RejectedSample(f"not a valid {type_name}: {_reason(exc)}")
+            try:
+                on_message(vehicle, topic_kind, topic, msg)
+            except Exception as exc:
+                try:
+                    on_message(vehicle, topic_kind, topic, RejectedSample(f"{_reason(exc)} while handling the sample"))
+                except Exception:
+                    pass              # nothing left to report through; the executor goes on
         return receive
 
     def _spin(self) -> None:
