@@ -26,7 +26,7 @@ def test_first_command_installs_into_a_venv_and_runs_the_delivery_world():
     first = readme_commands()[0]
     # THEN it installs what apt must provide, creates .venv, installs the project there and runs the scenario
     assert first.startswith("apt-get update && apt-get install -y ")
-    for package in ("python3-venv", "python3-dev", "g++", "libusb-1.0-0"):
+    for package in ("python3-venv", "python3-dev", "g++", "libusb-1.0-0", "libgl1", "libegl1"):
         assert f" {package} " in first, package
     assert "python3 -m venv .venv && .venv/bin/pip install -e . &&" in first
     assert first.endswith(" && .venv/bin/unetyemu run worlds/urban_delivery.yaml")
@@ -38,7 +38,7 @@ def test_second_command_installs_test_extras_and_runs_pytest_from_the_venv():
     # GIVEN the second command
     second = readme_commands()[1]
     # THEN it also installs the Fast DDS peer's build dependencies and runs pytest with the venv's python
-    for package in ("python3-venv", "python3-dev", "g++", "libusb-1.0-0", "libfastrtps-dev"):
+    for package in ("python3-venv", "python3-dev", "g++", "libusb-1.0-0", "libgl1", "libegl1", "libfastrtps-dev"):
         assert f" {package} " in second, package
     assert "python3 -m venv .venv && .venv/bin/pip install -e '.[test]' &&" in second
     assert second.endswith(" && .venv/bin/python -m pytest")
