@@ -218,8 +218,9 @@ def _draw_track(ax, log: LogTable, t, segments, colours, ctx: RunContext) -> Non
         segs = np.stack((pts[:-1], pts[1:]), axis=1)[seg_ok]
         ax.add_collection(LineCollection(segs, colors=list(colour_of_row[:-1][seg_ok]), lw=3.0, zorder=3))
     i0, i1 = np.flatnonzero(ok)[[0, -1]]
-    ax.plot(x[i0], y[i0], "o", ms=9, mfc="#1a9641", mec="k", zorder=5, label=f"start (t = {t[i0]:.1f} s)")
-    ax.plot(x[i1], y[i1], "s", ms=9, mfc="#d7191c", mec="k", zorder=5, label=f"end (t = {t[i1]:.1f} s)")
+    # the start ring is larger than the end square so that a hover (same start and end) shows both
+    ax.plot(x[i0], y[i0], "o", ms=13, mfc="#1a9641", mec="k", zorder=5, label=f"start (t = {t[i0]:.1f} s)")
+    ax.plot(x[i1], y[i1], "s", ms=7, mfc="#d7191c", mec="k", zorder=6, label=f"end (t = {t[i1]:.1f} s)")
     lo, hi = np.array([x[ok].min(), y[ok].min()]), np.array([x[ok].max(), y[ok].max()])
     near_lo, near_hi = lo - NEAR_TRACK_M, hi + NEAR_TRACK_M
     extra: list[tuple[float, float]] = []
@@ -227,25 +228,25 @@ def _draw_track(ax, log: LogTable, t, segments, colours, ctx: RunContext) -> Non
     def near(p) -> bool:
         return p is not None and bool(np.all(np.asarray(p) >= near_lo) and np.all(np.asarray(p) <= near_hi))
 
-    first_pkg = True
+    labelled: set[str] = set()
+
+    def mark(p, fmt: str, style: dict, label: str, name: str, offset: tuple[int, int]) -> None:
+        ax.plot(*p, fmt, ms=8, zorder=4, label=None if label in labelled else label, **style)
+        ax.annotate(name, p, xytext=offset, textcoords="offset points", fontsize=8, color=style["mec"])
+        labelled.add(label)
+        extra.append(p)
+
     for name, ent in ctx.entities.items():
         if ent.get("kind") != "package":
             continue
         start, final = _xy(ent.get("start_enu_m")), _xy(ent.get("final_enu_m"))
-        for p, marker, mfc, what in ((start, "D", "#a6611a", "at start"), (final, "D", "none", "at end")):
-            if near(p) and not (what == "at end" and start is not None and np.hypot(*np.subtract(p, start)) < 0.5):
-                ax.plot(*p, marker, ms=8, mfc=mfc, mec="#a6611a", mew=1.6, zorder=4,
-                        label=f"packages {what}" if first_pkg else None)
-                ax.annotate(name, p, xytext=(5, 5), textcoords="offset points", fontsize=8, color="#7a4510")
-                extra.append(p)
-        first_pkg = first_pkg and not any(near(p) for p in (start, final))
-    shown_pad = False
+        if near(start):
+            mark(start, "D", {"mfc": "#a6611a", "mec": "#7a4510", "mew": 1.6}, "package at start", name, (5, 5))
+        if near(final) and (start is None or np.hypot(*np.subtract(final, start)) >= 0.5):
+            mark(final, "D", {"mfc": "none", "mec": "#7a4510", "mew": 1.6}, "package at end", name, (5, 5))
     for name, p in ctx.pads_enu_m.items():
         if near(p):
-            ax.plot(*p, "^", ms=8, mfc="none", mec="#404040", zorder=4, label=None if shown_pad else "pads")
-            ax.annotate(name, p, xytext=(5, -10), textcoords="offset points", fontsize=8, color="#404040")
-            extra.append(p)
-            shown_pad = True
+            mark(p, "^", {"mfc": "none", "mec": "#404040"}, "pad", name, (5, -10))
     allp = np.vstack([pts[ok], *(np.array([e]) for e in extra)])
     lo, hi = allp.min(axis=0), allp.max(axis=0)
     centre, half = (lo + hi) / 2, max(MIN_TRACK_SPAN_M, float((hi - lo).max()) * 1.1) / 2

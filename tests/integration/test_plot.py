@@ -276,14 +276,14 @@ def test_no_legend_overlaps_the_data_area_of_any_axes(tmp_path, kind):
             assert not box.overlaps(ax.get_window_extent(renderer)), (legend.get_title().get_text(), ax.get_ylabel())
 
 
-def test_track_panel_has_equal_axis_scaling_and_marks_start_end_and_nearby_packages(tmp_path):
-    # GIVEN a drone log and a summary with one package on its track and one 2 km away
+def test_track_panel_has_equal_axis_scaling_and_marks_start_end_and_nearby_packages_and_pads(tmp_path):
+    # GIVEN a drone log and a summary with a package and a pad on its track, and another of each far away
     write_log(tmp_path / "drone1.csv", DRONE_HEADER, drone_rows())
     (tmp_path / "summary.json").write_text(json.dumps({"world": "w", "entities": [
         {"name": "drone1", "kind": "quadrotor", "distance_m": 20.0, "impacts": 0},
         {"name": "package1", "kind": "package", "start_enu_m": [-98.0, -49.0, 0.3], "final_enu_m": [-85.0, -43.0, 9.0]},
         {"name": "far", "kind": "package", "start_enu_m": [2000.0, 0.0, 0.3], "final_enu_m": [2000.0, 0.0, 0.3]},
-    ]}))
+    ], "pads": {"roof_1": [-86.0, -44.0, 20.0], "start_9": [900.0, 900.0, 0.0]}}))
     ctx, notes = load_context(tmp_path)
     fig = build_figure(read_log(tmp_path / "drone1.csv"), ctx)
     _drawn(fig)
@@ -300,6 +300,7 @@ def test_track_panel_has_equal_axis_scaling_and_marks_start_end_and_nearby_packa
     assert any(lab.startswith("start") for lab in labels) and any(lab.startswith("end") for lab in labels)
     names = [t.get_text() for t in ax.texts]
     assert "package1" in names and "far" not in names
+    assert "roof_1" in names and "start_9" not in names
 
 
 def test_car_log_gets_speed_against_setpoint_pedals_steering_and_track(tmp_path):
