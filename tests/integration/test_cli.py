@@ -12,6 +12,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 from ..conftest import REPO_ROOT, WORLDS
 
 
@@ -99,8 +101,17 @@ def test_plugins_lists_the_builtin_components():
     assert "aero_drag" in res.stdout and "unetyemu_ecs.systems:" in res.stdout
 
 
-def test_ctrl_c_ends_the_run_cleanly_keeping_logs_and_printing_the_summary(tmp_path):
-    # GIVEN the main scenario running in real time (so that it is still running when interrupted)
+def _csv_rows(path: Path) -> int:
+    try:
+        with open(path, newline="") as fh:
+            return max(0, sum(1 for _ in fh) - 1)
+    except FileNotFoundError:
+        return 0
+
+
+def _start_and_stop(tmp_path: Path, signals: list[signal.Signals], gap_s: float = 0.05):
+    """Run the main scenario in real time; once 12 log rows are written (1.1 s of sim time, however slow
+    the machine), send ``signals`` ``gap_s`` apart; return (process, stdout, stderr, out dir)."""
     out = tmp_path / "run"
     exe = shutil.which("unetyemu")
     cmd = [exe] if exe else [sys.executable, "-m", "unetyemu_ecs.cli"]
@@ -108,28 +119,108 @@ def test_ctrl_c_ends_the_run_cleanly_keeping_logs_and_printing_the_summary(tmp_p
                              "--out", str(out)], cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True)
     try:
-        # wait until the first log rows exist, then let it run a couple of seconds more
-        deadline = time.monotonic() + 120
-        while not (out / "drone1.csv").exists() and time.monotonic() < deadline:
-            time.sleep(0.2)
-        time.sleep(3.0)
-        # WHEN the user presses Ctrl-C
-        proc.send_signal(signal.SIGINT)
-        stdout, stderr = proc.communicate(timeout=60)
+        deadline = time.monotonic() + 300                  # a hang guard, not a speed expectation
+        while _csv_rows(out / "drone1.csv") < 12 and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.1)
+        for k, sig in enumerate(signals):
+            if k:
+                time.sleep(gap_s)
+            proc.send_signal(sig)
+        stdout, stderr = proc.communicate(timeout=120)
     finally:
         if proc.poll() is None:
             os.kill(proc.pid, signal.SIGKILL)
-    # THEN it exits 130, prints the summary marked as interrupted, and keeps the rows written so far
-    assert proc.returncode == 130, stderr
-    assert "INTERRUPTED" in stdout and "drone1" in stdout
+    return proc, stdout, stderr, out
+
+
+def _assert_clean_stop(proc, stdout: str, stderr: str, out: Path, code: int) -> None:
+    # exits with 128 + the signal, prints the summary marked as interrupted, keeps the rows written so far
+    assert proc.returncode == code, stderr
+    assert "INTERRUPTED" in stdout and "drone1" in stdout and "Traceback" not in stderr
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["interrupted"] is True and 0.5 < summary["sim_time_s"] < 150.0
+    assert summary["interrupted"] is True and 1.0 < summary["sim_time_s"] < 150.0
     with open(out / "drone1.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
     # rows cover the simulated time up to the interruption, at 10 Hz, and the last row is complete
-    assert len(rows) >= 10
+    assert len(rows) >= 12
     assert abs(float(rows[-1]["time_s"]) - summary["sim_time_s"]) <= 0.1 + 1e-9
     assert all(value != "" for value in rows[-1].values())
+
+
+def test_ctrl_c_ends_the_run_cleanly_keeping_logs_and_printing_the_summary(tmp_path):
+    _assert_clean_stop(*_start_and_stop(tmp_path, [signal.SIGINT]), code=130)
+
+
+@pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGHUP, 129)])
+def test_sigterm_and_sighup_stop_the_run_like_ctrl_c(tmp_path, sig, code):
+    # `timeout`, `docker stop`, systemd and `ros2 launch` send SIGTERM; a closed terminal SIGHUP
+    _assert_clean_stop(*_start_and_stop(tmp_path, [sig]), code=code)
+
+
+def test_two_ctrl_c_50_ms_apart_still_end_with_130_and_a_summary(tmp_path):
+    _assert_clean_stop(*_start_and_stop(tmp_path, [signal.SIGINT, signal.SIGINT], gap_s=0.05), code=130)
+
+
+def test_run_refuses_to_overwrite_an_earlier_run_or_an_empty_out(tmp_path):
+    # GIVEN a directory that holds an earlier run's files
+    earlier = tmp_path / "earlier"
+    earlier.mkdir()
+    (earlier / "summary.json").write_text("{}")
+    res = unetyemu("run", str(WORLDS / "empty.yaml"), "--duration", "0.1", "--out", str(earlier))
+    assert res.returncode == 2 and "already holds files" in res.stderr and "--overwrite" in res.stderr
+    assert (earlier / "summary.json").read_text() == "{}"
+    res = unetyemu("run", str(WORLDS / "empty.yaml"), "--duration", "0.1", "--out", str(earlier), "--overwrite")
+    assert res.returncode == 0, res.stderr
+    assert json.loads((earlier / "summary.json").read_text())["steps"] == 24
+    # AND an empty --out is an argument error, not "write into the current directory"
+    res = unetyemu("run", str(WORLDS / "empty.yaml"), "--duration", "0.1", "--out", "", cwd=tmp_path)
+    assert res.returncode == 2 and "must not be empty" in res.stderr
+    assert list(tmp_path.iterdir()) == [earlier]
+
+
+def test_default_output_directories_never_collide(tmp_path):
+    shutil.copy(WORLDS / "empty.yaml", tmp_path / "empty.yaml")
+    for _ in range(2):
+        res = unetyemu("run", "empty.yaml", "--duration", "0.1", cwd=tmp_path)
+        assert res.returncode == 0, res.stderr
+    runs = sorted((tmp_path / "runs").iterdir())
+    assert len(runs) == 2 and all((r / "summary.json").exists() for r in runs)
+
+
+def test_version_and_numbers_out_of_range_are_clear(tmp_path):
+    res = unetyemu("--version")
+    assert res.returncode == 0 and res.stdout.startswith("unetyemu_ecs ")
+    for args, message in ((["--duration", "1e308"], "up to 604800"), (["--rate", "1e-9"], "between 0.01 and 1000"),
+                          (["--seed", "-1"], "seed must be"), (["--duration", "nan"], "duration must be")):
+        res = unetyemu("run", str(WORLDS / "empty.yaml"), *args, "--out", str(tmp_path / "x"))
+        assert res.returncode == 2 and message in res.stderr and "Traceback" not in res.stderr, (args, res.stderr)
+
+
+def test_gui_without_a_display_says_so_instead_of_an_x_error(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    exe = shutil.which("unetyemu")
+    cmd = [exe] if exe else [sys.executable, "-m", "unetyemu_ecs.cli"]
+    res = subprocess.run([*cmd, "run", str(WORLDS / "empty.yaml"), "--gui", "--duration", "0.1",
+                          "--out", str(tmp_path / "g")], cwd=REPO_ROOT, capture_output=True, text=True, timeout=120,
+                         env=env)
+    assert res.returncode == 1 and "needs a display" in res.stderr and "xvfb-run" in res.stderr
+
+
+def test_plugins_shows_what_the_presets_give_instead_of_required():
+    res = unetyemu("plugins")
+    motors = res.stdout[res.stdout.index("  motors "):]
+    line = next(l for l in motors.splitlines() if "max_thrust_per_motor_n" in l)
+    assert "per preset:" in line and "small 20.0" in line and "(required)" not in line
+    energy = res.stdout[res.stdout.index("  energy "):]
+    assert "battery_wh: number = 500.0 (from the vehicle preset)" in energy
+
+
+def test_plugins_into_a_closed_pipe_is_quiet():
+    exe = shutil.which("unetyemu")
+    cmd = " ".join([exe] if exe else [sys.executable, "-m", "unetyemu_ecs.cli"])
+    res = subprocess.run(f"{cmd} plugins | head -1", shell=True, cwd=REPO_ROOT, capture_output=True, text=True,
+                         timeout=120)
+    assert "Traceback" not in res.stderr and "BrokenPipe" not in res.stderr
 
 
 def test_a_bad_ros_domain_id_is_a_clear_error_not_a_traceback(tmp_path):

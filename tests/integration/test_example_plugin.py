@@ -106,3 +106,20 @@ def test_world_using_the_plugin_is_refused_with_the_available_keys_when_it_is_no
     with pytest.raises(ConfigError) as info:
         load_world_text(WINDY_WORLD, "windy.yaml", registry=Registry())
     assert "systems.wind_gust: unknown key 'wind_gust' (available: none installed)" in str(info.value)
+
+
+def test_the_plugin_asks_pip_only_for_packages_pip_can_find():
+    # unetyemu_ecs is not on PyPI: a dependency on it makes `pip install ./plugins/wind_gust` fail
+    # anywhere but in the simulator's own environment, where it is not needed
+    import tomllib
+
+    deps = tomllib.loads((PLUGIN_DIR / "pyproject.toml").read_text())["project"]["dependencies"]
+    assert not any(d.replace("-", "_").lower().startswith("unetyemu_ecs") for d in deps), deps
+
+
+def test_an_impossible_wind_is_refused_at_load_with_its_line(plugin_site, tmp_path):
+    world = tmp_path / "storm.yaml"
+    world.write_text(WINDY_WORLD.replace("mean_speed_m_s: 8.0", "mean_speed_m_s: 400.0"))
+    res = _run_with_plugin(plugin_site, f"import sys; from unetyemu_ecs.cli import main; "
+                                        f"sys.exit(main(['validate', {str(world)!r}]))")
+    assert res.returncode == 2 and "systems.wind_gust.mean_speed_m_s: must be <= 50, got 400.0" in res.stderr

@@ -17,21 +17,28 @@ from typing import Annotated
 import esper
 import numpy as np
 
-from unetyemu_ecs import Phase, StepContext, SystemPlugin
-from unetyemu_ecs.config.schema import Ge, Gt
+try:
+    from unetyemu_ecs import Phase, StepContext, SystemPlugin
+    from unetyemu_ecs.config.schema import Ge, Le
+except ImportError as exc:  # pragma: no cover - depends on the environment
+    raise ImportError("unetyemu-wind-gust is a plugin of the unetyemu_ecs simulator: install it into the "
+                      "environment that has unetyemu_ecs (.venv/bin/pip install ./plugins/wind_gust from the "
+                      f"simulator's repository) ({exc})") from exc
 
 
 @dataclass(frozen=True, kw_only=True)
 class WindGustConfig:
     """World-file parameters of the wind (``systems: {wind_gust: {...}}``)."""
 
-    mean_speed_m_s: Annotated[float, Ge(0.0)] = 5.0
-    toward_deg: float = 0.0                                   # ENU direction the wind blows to
-    gust_amplitude_m_s: Annotated[float, Ge(0.0)] = 2.0
-    gust_period_s: Annotated[float, Gt(0.0)] = 8.0
-    vertical_m_s: float = 0.0                                 # up positive
-    turbulence_std_m_s: Annotated[float, Ge(0.0)] = 0.0
-    turbulence_tau_s: Annotated[float, Gt(0.0)] = 2.0
+    # bounds: winds past 50 m/s (a category-3 hurricane) are outside anything a drone or car flies or
+    # drives in; a gust period below 0.1 s is turbulence, not a gust
+    mean_speed_m_s: Annotated[float, Ge(0.0), Le(50.0)] = 5.0
+    toward_deg: Annotated[float, Ge(-360.0), Le(360.0)] = 0.0  # ENU direction the wind blows to
+    gust_amplitude_m_s: Annotated[float, Ge(0.0), Le(50.0)] = 2.0
+    gust_period_s: Annotated[float, Ge(0.1), Le(3600.0)] = 8.0
+    vertical_m_s: Annotated[float, Ge(-20.0), Le(20.0)] = 0.0  # up positive
+    turbulence_std_m_s: Annotated[float, Ge(0.0), Le(20.0)] = 0.0
+    turbulence_tau_s: Annotated[float, Ge(0.01), Le(3600.0)] = 2.0
 
 
 def wind_enu_m_s(cfg: WindGustConfig, t_s: float, turbulence_enu_m_s: np.ndarray) -> np.ndarray:
