@@ -129,7 +129,7 @@ vehicles:
     (URBAN.replace("blocks_x: 2", "tree_spacing_m: 0.000001"), "w.yaml:4: scene.urban.tree_spacing_m: must be >= 2"),
     (CAR_ROUTE.replace("LAPS", str(2**70)), "w.yaml:8: vehicles[0].components.route.laps: must be <= 10000"),
     (BASE.replace("pose: {pad: home}", "pose: {pad: home}\n    components: {camera: {width: 20000, height: 480}}"),
-     "w.yaml:15: vehicles[0].components.camera.width: must be <= 4096, got 20000"),
+     "w.yaml:15: vehicles[0].components.camera.width: must be <= 1920, got 20000"),
     (BASE.replace("pose: {pad: home}", "pose: {position_m: [1.0e+300, 0, 10]}"),
      "w.yaml:14: vehicles[0].pose.position_m[0]: must be <= 20000, got 1e+300"),
     (BASE.replace("pose: {pad: home}", "pose: {position_m: [0, 0, -1000000]}"),
