@@ -63,6 +63,18 @@ def _seed(text: str) -> int:
     return value
 
 
+def _vehicle_name(text: str) -> str:
+    """A vehicle name as world files allow it (it is the prefix of the vehicle's ROS 2 topics)."""
+    import re
+
+    from .config.limits import MAX_NAME_LEN
+
+    if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", text) or len(text) > MAX_NAME_LEN:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a vehicle name (a letter, then letters, digits and _; "
+                                         f"at most {MAX_NAME_LEN} characters)")
+    return text
+
+
 def _out_dir(text: str) -> Path:
     if not text.strip():
         raise argparse.ArgumentTypeError("the output directory must not be empty (omit --out for runs/<world>-<time>)")
@@ -107,7 +119,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_parser("plugins", help="list installed components, systems and sensors")
 
     tele = sub.add_parser("teleop", help="drive a vehicle from the keyboard over ROS 2 (DDS)")
-    tele.add_argument("vehicle", metavar="VEHICLE", help="the vehicle's name (its ROS 2 topics start with /VEHICLE)")
+    tele.add_argument("vehicle", metavar="VEHICLE", type=_vehicle_name,
+                      help="the vehicle's name (its ROS 2 topics start with /VEHICLE)")
     tele.add_argument("--layout", choices=["drone", "car"], default="drone",
                       help="stick layout: drone [throttle, pitch, roll, yaw] or car [throttle, brake, steering]")
 

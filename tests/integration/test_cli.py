@@ -249,3 +249,8 @@ def test_run_with_ros2_auto_says_which_backend_it_chose_and_rclpy_without_ros_is
                               "--out", str(tmp_path / "r")], cwd=REPO_ROOT, capture_output=True, text=True,
                              timeout=120, env=env)
         assert res.returncode == 1 and "rclpy does not import" in res.stderr and "Traceback" not in res.stderr
+
+
+def test_teleop_refuses_a_name_that_cannot_be_a_vehicle():
+    res = unetyemu("teleop", "drone 1; rm")
+    assert res.returncode == 2 and "is not a vehicle name" in res.stderr and "Traceback" not in res.stderr
