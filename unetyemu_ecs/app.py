@@ -35,6 +35,7 @@ from .systems.physics import PhysicsStepSystem
 from .systems.state import StateReadbackSystem
 from .transport.ros2.bridge import resolve_backend
 from .mission import MissionSpec, mission_reference_issues, parse_mission
+from .mission.spec import MAX_CRUISE_SPEED_M_S
 from .transport.bus import Arm, CmdVel, Drive, DriveRoute, Inbox, LoadMission, SetTarget, Teleop
 from .world import EcsWorld, SimServices, StepContext
 
@@ -73,6 +74,7 @@ ProgressFn = Callable[[float, float, float], None]   # (sim_time_s, end_time_s, 
 
 MAX_TARGET_ALTITUDE_M = 1000.0   # highest target a drone is sent to [m]: far above any city, below the
                                  # altitudes where the ground-level air and GPS models stop holding
+MAX_YAW_RATE_RAD_S = 2 * math.pi  # a turn a second: beyond any drone's or car's yaw-rate limit
 MAX_LAPS = 10_000                # laps of a looping car route (0 = forever)
 
 
@@ -353,8 +355,8 @@ class Simulation:
         values = [x, y, z, *(v for v in (yaw_deg, speed) if v is not None)]
         if not all(_is_real(v) and math.isfinite(v) for v in values):
             raise ValueError(f"set_target({name!r}): values must be finite numbers, got {values}")
-        if speed is not None and speed <= 0:
-            raise ValueError(f"set_target({name!r}): speed must be > 0, got {speed}")
+        if speed is not None and not 0 < speed <= MAX_CRUISE_SPEED_M_S:
+            raise ValueError(f"set_target({name!r}): speed must be in (0, {MAX_CRUISE_SPEED_M_S:g}] m/s, got {speed}")
         self._check_in_world(f"set_target({name!r})", [(x, y)])
         if kind == "quadrotor" and not 0.0 <= z <= MAX_TARGET_ALTITUDE_M:
             raise ValueError(f"set_target({name!r}): z must be in [0, {MAX_TARGET_ALTITUDE_M:g}] m (ENU height above "
@@ -384,7 +386,13 @@ class Simulation:
         drone keeps doing what it was doing.
         """
         self._drone(name)
-        spec = parse_mission(mission, source=f"mission for {name}") if isinstance(mission, str) else mission
+        if isinstance(mission, (str, bytes, bytearray)):
+            spec = parse_mission(mission, source=f"mission for {name}")
+        elif isinstance(mission, MissionSpec):
+            spec = mission
+        else:
+            raise ValueError(f"load_mission({name!r}): expected mission text (JSON) or a MissionSpec, "
+                             f"got {type(mission).__name__}")
         problems = mission_reference_issues(spec, self.layout, self.package_names)
         if problems:
             raise ConfigError([Issue(f"mission for {name}", None, path, msg) for path, msg in problems])
@@ -444,6 +452,10 @@ class Simulation:
         values = (forward_m_s, yaw_rate_rad_s, left_m_s, up_m_s)
         if not all(_is_real(v) and math.isfinite(v) for v in values):
             raise ValueError(f"cmd_vel({name!r}): values must be finite numbers, got {values}")
+        if max(abs(forward_m_s), abs(left_m_s), abs(up_m_s)) > MAX_CRUISE_SPEED_M_S \
+                or abs(yaw_rate_rad_s) > MAX_YAW_RATE_RAD_S:
+            raise ValueError(f"cmd_vel({name!r}): speeds must be within +-{MAX_CRUISE_SPEED_M_S:g} m/s and the yaw "
+                             f"rate within +-{MAX_YAW_RATE_RAD_S:g} rad/s, got {values}")
         self.inbox.put(CmdVel(name, float(forward_m_s), float(yaw_rate_rad_s), float(left_m_s), float(up_m_s),
                               _hold(f"cmd_vel({name!r})", hold_s)))
 

@@ -110,3 +110,16 @@ def test_an_api_run_with_an_output_directory_writes_summary_json_like_the_cli(tm
     assert {e["name"] for e in summary["entities"]} == {"d1", "c1"}
     assert summary["logs"]["d1"].endswith("d1.csv") and (tmp_path / "run" / "d1.csv").exists()
     assert summary["wall_time_s"] > 0 and summary["interrupted"] is False
+
+
+def test_commands_beyond_what_a_vehicle_can_do_are_refused(sim):
+    with pytest.raises(ValueError, match=r"speed must be in \(0, 30\] m/s"):
+        sim.set_target("d1", 10.0, 0.0, 5.0, speed=1e300)
+    with pytest.raises(ValueError, match="within"):
+        sim.cmd_vel("d1", 1e6, 0.0)
+    with pytest.raises(ValueError, match="yaw rate"):
+        sim.cmd_vel("c1", 1.0, 100.0)
+    with pytest.raises(ValueError, match="expected mission text"):
+        sim.load_mission("d1", 123)
+    with pytest.raises(ValueError, match="laps must be an integer"):
+        sim.drive_route("c1", [(1, 1), (5, 1), (5, 5)], loop=True, laps=2**70)
