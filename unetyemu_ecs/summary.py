@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -41,12 +42,23 @@ def build_summary(sim: Simulation, stats: RunStats) -> dict[str, Any]:
         "steps": sim.step_count,
         "sim_time_s": round(stats.sim_time_s, 6),
         "wall_time_s": round(stats.wall_time_s, 3),
-        "real_time_factor": round(stats.real_time_factor, 3),
+        "real_time_factor": _finite_or_none(stats.real_time_factor),
+        "cpu_time_s": round(stats.cpu_time_s, 3),
+        "cpu_real_time_factor": _finite_or_none(stats.cpu_real_time_factor),
         "interrupted": stats.interrupted,
         "entities": entities,
         "events": [{"time_s": t, "entity": name, "text": text} for t, name, text in sim.events],
         "logs": {name: str(p) for name, p in sim.log_paths.items()},
     }
+
+
+def _finite_or_none(x: float) -> float | None:
+    """Round a figure for JSON; None where it is undefined (no time spent: 0 steps)."""
+    return round(x, 3) if math.isfinite(x) else None
+
+
+def _factor(x: float | None) -> str:
+    return "-" if x is None else f"{x:.2f}x"
 
 
 def format_summary(summary: dict[str, Any]) -> str:
@@ -59,7 +71,8 @@ def format_summary(summary: dict[str, Any]) -> str:
     lines = [
         f"world {summary['world']} (seed {summary['seed']}): {fleet}",
         f"sim time {summary['sim_time_s']:.2f} s | wall {summary['wall_time_s']:.2f} s | "
-        f"real-time factor {summary['real_time_factor']:.2f}x | {summary['steps']} steps at "
+        f"real-time factor {_factor(summary['real_time_factor'])} (per CPU second "
+        f"{_factor(summary['cpu_real_time_factor'])}) | {summary['steps']} steps at "
         f"{summary['physics_hz']:g} Hz" + (" | INTERRUPTED" if summary["interrupted"] else ""),
     ]
     if ents:
