@@ -12,7 +12,6 @@ from ``ROS_DOMAIN_ID`` (default 0).
 from __future__ import annotations
 
 import os
-from pathlib import Path
 from typing import Any
 from xml.sax.saxutils import quoteattr
 
@@ -37,15 +36,22 @@ RANGES = ("", "SUBNET", "LOCALHOST", "OFF", "SYSTEM_DEFAULT")
 
 
 def _host_interfaces() -> list[str]:
-    """Non-loopback network interfaces that are up and can multicast (Linux ``/sys/class/net``)."""
+    """Non-loopback network interfaces of this network namespace that are up, running and can multicast."""
+    import fcntl
+    import socket
+    import struct
+
     found = []
-    for flags in sorted(Path("/sys/class/net").glob("*/flags")):
-        try:
-            value = int(flags.read_text(), 16)
-        except (OSError, ValueError):
-            continue
-        if value & 0x1 and value & 0x40 and value & 0x1000 and not value & 0x8:   # UP, RUNNING, MULTICAST, !LOOPBACK
-            found.append(flags.parent.name)
+    try:
+        names = [name for _, name in socket.if_nameindex()]
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            for name in names:
+                request = struct.pack("16sH14x", name.encode()[:15], 0)
+                flags = struct.unpack("16sH14x", fcntl.ioctl(s.fileno(), 0x8913, request))[1]   # SIOCGIFFLAGS
+                if flags & 0x1 and flags & 0x40 and flags & 0x1000 and not flags & 0x8:   # UP RUNNING MULTICAST !LOOPBACK
+                    found.append(name)
+    except (OSError, ImportError, AttributeError):   # not Linux: loopback only (SIOCGIFFLAGS is Linux's)
+        return []
     return found
 
 
