@@ -123,3 +123,11 @@ def test_commands_beyond_what_a_vehicle_can_do_are_refused(sim):
         sim.load_mission("d1", 123)
     with pytest.raises(ValueError, match="laps must be an integer"):
         sim.drive_route("c1", [(1, 1), (5, 1), (5, 5)], loop=True, laps=2**70)
+
+
+def test_a_seed_override_out_of_range_is_a_config_error_naming_it():
+    from unetyemu_ecs import ConfigError
+
+    for seed in (-1, 2**64, 1.5, True):
+        with pytest.raises(ConfigError, match="world.seed: the seed override must be an integer"):
+            load_world_text(WORLD, seed=seed)

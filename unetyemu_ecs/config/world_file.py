@@ -215,6 +215,9 @@ def resolve_world(doc: Any, src: SourceMap, registry: Registry | None = None,
     if spec is INVALID:
         raise ConfigError(issues)
     if seed is not None:
+        if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= 2**63 - 1:
+            raise ConfigError([Issue(src.file, None, ("world", "seed"), f"the seed override must be an integer in "
+                                                                       f"[0, 2**63 - 1], got {seed!r}")])
         spec = replace(spec, world=replace(spec.world, seed=seed))
 
     _check_names(spec, src, issues)
