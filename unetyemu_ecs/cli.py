@@ -340,6 +340,8 @@ def cmd_plot(args: argparse.Namespace) -> int:
         return EXIT_BAD_INPUT
     for path in paths:
         print(path)
+    for note in paths.skipped:                    # what a damaged log did not let us plot
+        print(f"warning: {note}", file=sys.stderr)
     return EXIT_OK
 
 

@@ -254,3 +254,20 @@ def test_run_with_ros2_auto_says_which_backend_it_chose_and_rclpy_without_ros_is
 def test_teleop_refuses_a_name_that_cannot_be_a_vehicle():
     res = unetyemu("teleop", "drone 1; rm")
     assert res.returncode == 2 and "is not a vehicle name" in res.stderr and "Traceback" not in res.stderr
+
+
+def test_plot_of_a_killed_run_plots_what_it_can_and_names_the_skipped_line(tmp_path):
+    # GIVEN a run whose drone log lost the end of its last row (SIGKILL while writing)
+    out = tmp_path / "run"
+    res = unetyemu("run", str(WORLDS / "empty.yaml"), "--duration", "0.1", "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["pads"] == {}                       # the empty world has none; the city names its pads
+    log = out / "d1.csv"
+    (out / "d1.csv").write_text("time_s,x_m,y_m,z_m\n0.0,0,0,1\n0.1,0,0,1.1\n0.2,0,0,1.")
+    # WHEN it is plotted
+    res = unetyemu("plot", str(out))
+    # THEN the readable rows are plotted and the damaged line is named on stderr
+    assert res.returncode == 0, res.stderr
+    assert str(log.with_suffix(".png")) in res.stdout
+    assert "warning:" in res.stderr and "line 4" in res.stderr and "Traceback" not in res.stderr
