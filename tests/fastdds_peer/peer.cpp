@@ -146,13 +146,25 @@ int main(int argc, char** argv) {
 
     DomainParticipantQos pqos;
     pqos.name("fastdds_peer");
-    auto udp = std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>();
-    udp->interfaceWhiteList.emplace_back("127.0.0.1");
-    pqos.transport().user_transports.push_back(udp);
-    pqos.transport().use_builtin_transports = false;
-    eprosima::fastrtps::rtps::Locator_t peer;
-    eprosima::fastrtps::rtps::IPLocator::setIPv4(peer, 127, 0, 0, 1);
-    pqos.wire_protocol().builtin.initialPeersList.push_back(peer);
+    // FASTDDS_PEER_DEFAULTS set: Fast DDS' own defaults (every interface, multicast discovery), as
+    // rmw_fastrtps_cpp under ROS 2's default discovery range; else loopback with 127.0.0.1 as peer
+    if (!std::getenv("FASTDDS_PEER_DEFAULTS")) {
+        auto udp = std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>();
+        udp->interfaceWhiteList.emplace_back("127.0.0.1");
+        pqos.transport().user_transports.push_back(udp);
+        pqos.transport().use_builtin_transports = false;
+        eprosima::fastrtps::rtps::Locator_t peer;
+        eprosima::fastrtps::rtps::IPLocator::setIPv4(peer, 127, 0, 0, 1);
+        pqos.wire_protocol().builtin.initialPeersList.push_back(peer);
+    }
+    // FASTDDS_PEER_RCVBUF=<bytes>: the receive socket buffer a user raises for large best-effort data
+    if (const char* rcvbuf = std::getenv("FASTDDS_PEER_RCVBUF")) {
+        pqos.transport().listen_socket_buffer_size = static_cast<uint32_t>(std::atol(rcvbuf));
+        for (auto& t : pqos.transport().user_transports) {
+            auto udp = std::dynamic_pointer_cast<eprosima::fastdds::rtps::UDPv4TransportDescriptor>(t);
+            if (udp) udp->receiveBufferSize = static_cast<uint32_t>(std::atol(rcvbuf));
+        }
+    }
     DomainParticipant* dp = DomainParticipantFactory::get_instance()->create_participant(domain, pqos);
     if (dp == nullptr) { std::cerr << "cannot create a participant" << std::endl; return 1; }
 
@@ -167,7 +179,9 @@ int main(int argc, char** argv) {
     Subscriber* sub = dp->create_subscriber(SUBSCRIBER_QOS_DEFAULT);
     Publisher* pub = dp->create_publisher(PUBLISHER_QOS_DEFAULT);
     DataReaderQos rqos = DATAREADER_QOS_DEFAULT;
-    rqos.reliability().kind = RELIABLE_RELIABILITY_QOS;
+    // FASTDDS_PEER_BEST_EFFORT set: best-effort readers, as qos_profile_sensor_data and `ros2 topic hz`
+    rqos.reliability().kind = std::getenv("FASTDDS_PEER_BEST_EFFORT") ? BEST_EFFORT_RELIABILITY_QOS
+                                                                      : RELIABLE_RELIABILITY_QOS;
     rqos.durability().kind = VOLATILE_DURABILITY_QOS;
     rqos.history().kind = KEEP_LAST_HISTORY_QOS;
     rqos.history().depth = 10;

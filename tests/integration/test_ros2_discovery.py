@@ -29,12 +29,12 @@ def _can_unshare() -> bool:
         return False
 
 
-def _in_namespace(discovery_range: str | None, seconds: float = 6.0) -> dict:
+def _in_namespace(discovery_range: str | None, seconds: float = 6.0, *extra: str) -> dict:
     env = {k: v for k, v in os.environ.items() if not k.startswith(("CYCLONEDDS_", "ROS_"))}
     if discovery_range is not None:
         env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = discovery_range
-    done = subprocess.run(["unshare", "-n", sys.executable, str(DRIVER), str(seconds)], cwd=DRIVER.parent, env=env,
-                          capture_output=True, text=True, timeout=120)
+    done = subprocess.run(["unshare", "-n", sys.executable, str(DRIVER), str(seconds), *extra], cwd=DRIVER.parent,
+                          env=env, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     return json.loads(done.stdout.strip().splitlines()[-1])
 
@@ -109,4 +109,20 @@ def test_ros_automatic_discovery_range_subnet_opens_the_simulator_to_the_lan():
 def test_localhost_and_off_keep_the_simulator_away_from_multicast_discovery(discovery_range):
     got = _in_namespace(discovery_range)
     assert got["received"]["clock_samples"] == 0
+    assert got["sim"] not in got["on_the_lan"]
+
+
+@needs_netns
+def test_a_fast_dds_peer_with_fast_dds_defaults_discovers_the_simulator_with_no_setting():
+    # GIVEN the Fast DDS C++ peer (what rmw_fastrtps_cpp is built on) with Fast DDS' own defaults
+    sys.path.insert(0, str(DRIVER.parent.parent / "fastdds_peer"))
+    from peer_build import PeerBuildError, build_peer
+    try:
+        exe = build_peer()
+    except PeerBuildError as exc:
+        pytest.fail(str(exc))
+    got = _in_namespace(None, 6.0, str(exe))
+    # THEN it receives the IMU and the clock, and still nothing of the simulator's is on the LAN
+    assert got["fastdds"]["imu"]["count"] > 10 and got["fastdds"]["imu"]["frame_id"] == "d1/imu_link"
+    assert got["fastdds"]["clock"]["count"] > 10
     assert got["sim"] not in got["on_the_lan"]

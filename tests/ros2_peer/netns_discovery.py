@@ -1,14 +1,15 @@
 """Discovery in a network namespace: does a DEFAULT-configured DDS participant find the simulator, and
 does any packet of the simulator's go out on the "LAN"?
 
-Usage (as root, inside a fresh `unshare -n`): python3 netns_discovery.py SECONDS
+Usage (as root, inside a fresh `unshare -n`): python3 netns_discovery.py SECONDS [FASTDDS_PEER_EXE]
 Sets up `lo` (multicast on) and a veth pair: v0 (10.9.0.1/24) is this host's LAN interface, v1 its
 far end, where every packet that leaves the host through v0 is captured. Then runs, for SECONDS:
 a peer with cyclonedds' defaults (no CYCLONEDDS_URI, no configuration: what rmw_cyclonedds_cpp
 uses with ROS 2's default discovery range) subscribed to /clock and ros_discovery_info, and the
 simulator (`Simulation(..., ros2="dds")`, the environment as given). Prints one JSON object: the
 simulator's and the peer's GUID prefixes, what the peer received, and per GUID prefix the IP TTLs
-of the RTPS packets captured on v1.
+of the RTPS packets captured on v1. With FASTDDS_PEER_EXE (tests/fastdds_peer), the Fast DDS peer
+runs too, with Fast DDS' defaults (FASTDDS_PEER_DEFAULTS), and its report is under "fastdds".
 
 `python3 netns_discovery.py peer SECONDS` is the peer itself.
 """
@@ -27,7 +28,7 @@ WORLD = """
 world: {name: netns, physics_hz: 240, seed: 3}
 scene: {generator: none, ground_size_m: 100}
 vehicles:
-  - {name: d1, type: quadrotor, preset: medium, pose: {position_m: [0.0, 0.0, 0.3]}}
+  - {name: d1, type: quadrotor, preset: medium, pose: {position_m: [0.0, 0.0, 0.3]}, components: {imu: {}}}
 """
 
 
@@ -93,14 +94,28 @@ def main() -> None:
     other = subprocess.Popen([sys.executable, __file__, "peer", str(seconds + 2.0)], env=env,
                              cwd=os.path.dirname(os.path.abspath(__file__)), stdout=subprocess.PIPE, text=True)
     peer_prefix = json.loads(other.stdout.readline())["guid_prefix"]
+    fast = None
+    if len(sys.argv) > 2:
+        fast = subprocess.Popen([sys.argv[2], "/d1/imu/data", "/d1/lidar/points", "/d1/camera/image_raw"],
+                                env=env | {"FASTDDS_PEER_DEFAULTS": "1"}, stdin=subprocess.PIPE,
+                                stdout=subprocess.PIPE, text=True)
+        assert fast.stdout.readline().strip() == "ready"
     from unetyemu_ecs import Simulation, load_world_text
 
     with Simulation(load_world_text(WORLD), ros2="dds") as sim:
         sim_prefix = bytes(sim._ros2_bridge.publisher.participant.guid.bytes[:12]).hex()
         sim.run(duration=seconds, rate=1.0)
+    fast_report = None
+    if fast is not None:
+        fast.stdin.write("report\n")
+        fast.stdin.flush()
+        fast_report = json.loads(fast.stdout.readline())
+        fast.stdin.write("quit\n")
+        fast.stdin.flush()
+        fast.wait(timeout=10)
     got = json.loads(other.communicate(timeout=30)[0].strip().splitlines()[-1])
     cap.join()
-    print(json.dumps({"sim": sim_prefix, "peer": peer_prefix, "received": got,
+    print(json.dumps({"sim": sim_prefix, "peer": peer_prefix, "received": got, "fastdds": fast_report,
                       "on_the_lan": {k: sorted(v) for k, v in seen.items()}}), flush=True)
 
 
