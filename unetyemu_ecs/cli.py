@@ -249,7 +249,7 @@ def _run(args: argparse.Namespace, stop: _StopOnSignal) -> int:
     from .physics.client import PhysicsError
     from .sensors.raycast import SensorUnavailable
     from .summary import format_summary
-    from .transport.ros2.dds_backend import Ros2Error, domain_from_env
+    from .transport.ros2.dds_backend import Ros2Error, discovery_description, domain_from_env
 
     try:
         world = load_world(args.world, seed=args.seed)
@@ -278,8 +278,7 @@ def _run(args: argparse.Namespace, stop: _StopOnSignal) -> int:
         sim.stop()
     if sim.ros2_backend != "off" and not args.quiet:
         print(f"ROS 2: node /unetyemu_sim on the {sim.ros2_backend} backend, ROS_DOMAIN_ID {domain_from_env()}"
-              + (", loopback only (set CYCLONEDDS_URI for other hosts)"
-                 if sim.ros2_backend == "dds" and not os.environ.get("CYCLONEDDS_URI") else ""), file=sys.stderr)
+              + (f", {discovery_description()}" if sim.ros2_backend == "dds" else ""), file=sys.stderr)
     try:
         if stop.signum is None:
             progress = None if args.quiet else _Progress(sys.stderr)
