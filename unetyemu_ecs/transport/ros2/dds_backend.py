@@ -2,10 +2,14 @@
 
 DDS topic ``rt/<topic>``, type ``<pkg>::msg::dds_::<Msg>_`` (:mod:`.dds_types`), XCDR1 data
 representation (a Fast DDS reader ignores XCDR2 silently), QoS Reliable / Volatile / KeepLast(10)
-(what RViz2 and ``ros2 topic echo`` expect), ``/tf_static`` TransientLocal / KeepLast(1). Unless
-``CYCLONEDDS_URI`` is set, the participant uses a loopback-only configuration (interface ``lo``,
-no multicast, peer 127.0.0.1) with large-message fragmentation, burst and heartbeat settings that
-Fast DDS readers with default socket buffers can follow without losing images; the domain comes
+(what RViz2 and ``ros2 topic echo`` expect); TransientLocal: ``/tf_static`` KeepLast(1), ``/rosout``
+KeepLast(1000) (as rcl), ``/<v>/mission/status`` KeepLast(1) (latched). The node's parameter
+services are in :mod:`.dds_params`. Unless ``CYCLONEDDS_URI`` is set, the network configuration
+follows ROS 2's variables (:func:`dds_config`): by default discoverable by default-configured ROS 2
+nodes on this machine while the simulator's multicast never leaves it (TTL 0),
+``ROS_AUTOMATIC_DISCOVERY_RANGE`` (SUBNET, LOCALHOST, OFF, SYSTEM_DEFAULT) and ``ROS_STATIC_PEERS``
+as in ROS 2; every variant keeps large-message fragmentation, burst and heartbeat settings that
+Fast DDS readers with default socket buffers can follow without losing images. The domain comes
 from ``ROS_DOMAIN_ID`` (default 0).
 """
 
@@ -79,7 +83,9 @@ def dds_config(discovery_range: str, static_peers: list[str], host_interfaces: l
     - unset: multicast discovery on the host's default interface *and* loopback, with a multicast
       TTL of 0: a default-configured ROS 2 node on this machine finds the simulator, the
       simulator's multicast never leaves the machine, and its unicast goes to the addresses of
-      participants that found it (on this machine: its own addresses).
+      participants that found it (on this machine: its own addresses). Not a firewall: a
+      participant elsewhere whose multicast discovery reaches this host (another ROS 2 machine on
+      the same LAN and domain) gets answers too; ``LOCALHOST`` or a domain id of your own avoids it.
     - ``SUBNET``: the same with cyclonedds' normal TTL (32): the LAN sees the simulator.
     - ``LOCALHOST``: loopback only, no multicast, unicast discovery on 127.0.0.1.
     - ``OFF``: no automatic discovery (loopback, no multicast); only static peers.
@@ -125,6 +131,9 @@ LOOPBACK_CONFIG = dds_config("LOCALHOST", [])
 
 LATCHED_DEPTH = {"/tf_static": 1, "/rosout": 1000}   # TransientLocal topics and their KeepLast depth (as rcl/tf2)
 TRANSIENT_LOCAL_TOPICS = tuple(LATCHED_DEPTH)
+
+
+VOLATILE_DEPTH = {"/parameter_events": 1000}          # rcl's parameter events profile
 
 
 def latched_depth(ros_topic: str) -> int | None:
@@ -224,7 +233,7 @@ class DdsPublisher:
         depth = latched_depth(ros_topic)
         policies = [Policy.Reliability.Reliable(duration(milliseconds=MAX_BLOCKING_MS)),
                     Policy.Durability.TransientLocal if depth else Policy.Durability.Volatile,
-                    Policy.History.KeepLast(depth or 10),
+                    Policy.History.KeepLast(depth or VOLATILE_DEPTH.get(ros_topic, 10)),
                     Policy.DataRepresentation(use_cdrv0_representation=True)]
         if type_name is not None:
             policies.append(Policy.Userdata(f"typehash={typestore().hash_rihs01(type_name)};".encode()))
