@@ -183,7 +183,10 @@ def test_parameter_services_answer_an_rmw_cyclonedds_client_with_read_only_world
     with Simulation(load_world_text(WORLD), ros2="dds") as sim:
         # WHEN a client calls list/get/describe/get_types/set with rmw_cyclonedds' request header
         got = _run_while(sim, peer)
-    # THEN each reply came back under the request's header, with the node's parameters
+    # THEN each service is "available" as rmw_cyclonedds judges it (request reader and reply writer
+    # announce the same serviceid), and each reply came back under the request's header
+    assert got["service_available"] == {s: True for s in ("list_parameters", "get_parameters", "describe_parameters",
+                                                          "get_parameter_types", "set_parameters")}
     assert got["list_parameters"]["result"]["names"] == ["use_sim_time", "world.name", "world.seed"]
     assert got["list_parameters"]["result"]["prefixes"] == ["world"]
     values = got["get_parameters"]["values"]

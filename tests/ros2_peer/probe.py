@@ -11,7 +11,8 @@ Usage:
       within SECONDS (hex CDR per topic) as one JSON object.
   python3 probe.py params SECONDS
       Act as an rmw_cyclonedds_cpp client of /unetyemu_sim's parameter services (16-byte request
-      header: client id, sequence number) and print the decoded replies as JSON.
+      header: client id, sequence number; clientid= in USER_DATA; availability by serviceid=) and
+      print the decoded replies as JSON.
 """
 
 from __future__ import annotations
@@ -119,7 +120,8 @@ def params(seconds: float) -> None:
             (parsed,) = get_types_from_msg(text, f"rcl_interfaces/msg/{srv}_{part}").values()
             TS.register({f"rcl_interfaces/srv/{srv}_{part}": parsed})
     qos = Qos(Policy.Reliability.Reliable(duration(seconds=1)), Policy.Durability.Volatile,
-              Policy.History.KeepLast(10), Policy.DataRepresentation(use_cdrv0_representation=True))
+              Policy.History.KeepLast(10), Policy.DataRepresentation(use_cdrv0_representation=True),
+              Policy.Userdata(b"clientid=de.ad.be.ef.0.0.0.0.0.0.0.0.0.0.0.1;"))   # as rmw_cyclonedds clients
     ends = {}
     for service, (srv, _, _) in SERVICES.items():
         def wire(part: str) -> type:
@@ -147,7 +149,18 @@ def params(seconds: float) -> None:
     while time.monotonic() < end and not all(w.get_matched_subscriptions() and r.get_matched_publications()
                                               for w, r in ends.values()):
         time.sleep(0.02)
-    out = {}
+    out = {"service_available": {}}
+    for service, (writer, reader) in ends.items():
+        # rmw_service_server_is_available: a matched request reader and reply writer with the same serviceid
+        def ids(endpoint, handles, data):
+            found = set()
+            for h in handles:
+                user = data(h).qos[Policy.Userdata]
+                found |= {kv[10:] for kv in (user.data.decode() if user else "").split(";") if kv.startswith("serviceid=")}
+            return found
+        requests_ids = ids(writer, writer.get_matched_subscriptions(), writer.get_matched_subscription_data)
+        replies_ids = ids(reader, reader.get_matched_publications(), reader.get_matched_publication_data)
+        out["service_available"][service] = bool(requests_ids & replies_ids)
     for seq, (service, fields) in enumerate(requests.items(), start=1):
         srv = SERVICES[service][0]
         writer, reader = ends[service]

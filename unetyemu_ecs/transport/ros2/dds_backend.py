@@ -309,17 +309,21 @@ POLL_S = 0.01
 MAX_REASON_CHARS = 300          # a rejection reason quotes at most this much of an exception's text
 
 
-def take_raw(reader: Any, n: int = 32) -> list[bytes]:
+def take_raw(reader: Any, n: int = 32, with_info: bool = False) -> list:
     """Take up to ``n`` valid samples of ``reader`` as their XCDR bytes (with the encapsulation header),
-    without decoding them: a sample that cannot be decoded must not cost the others."""
+    without decoding them: a sample that cannot be decoded must not cost the others. With
+    ``with_info``: ``(bytes, sample_info)`` pairs."""
     if _RAW_TAKE is None:                     # pragma: no cover - another cyclonedds: decode, then re-encode
-        return [s.serialize(use_version_2=False) for s in reader.take(N=n) if hasattr(s, "serialize")]
+        samples = [s for s in reader.take(N=n) if hasattr(s, "serialize")]
+        return [(s.serialize(use_version_2=False), s.sample_info) if with_info else s.serialize(use_version_2=False)
+                for s in samples]
     from cyclonedds.core import DDSException, InstanceState, SampleState, ViewState
 
     ret = _RAW_TAKE(reader._ref, SampleState.Any | ViewState.Any | InstanceState.Any, n)
     if isinstance(ret, int):
         raise DDSException(ret, f"while taking samples of {reader!r}")
-    return [bytes(data) for data, info in ret if info.valid_data]   # invalid samples: a writer went away
+    # invalid samples (a writer went away) carry no data
+    return [(bytes(data), info) if with_info else bytes(data) for data, info in ret if info.valid_data]
 
 
 def _reason(exc: BaseException) -> str:
@@ -336,8 +340,8 @@ class DdsCommandListener:
     not CDR, a string that is not UTF-8, a length beyond the data) is handed over as a
     :class:`~.inbound.RejectedSample` carrying the reason, which the command API rejects like any
     bad command (event log, ``/rosout``); an exception raised by ``on_message`` itself is handed
-    over the same way. ``services`` are further ``(reader, handle(cdr))`` pairs served on the same
-    thread (the parameter services).
+    over the same way. ``services`` are further ``(reader, handle(cdr, sample_info))`` pairs served
+    on the same thread (the parameter services).
     """
 
     def __init__(self, publisher: DdsPublisher, vehicles: dict[str, str], topic_types: dict[str, str],
@@ -382,8 +386,8 @@ class DdsCommandListener:
                     self._deliver(vehicle, topic_kind, ros_topic, msg)
             for reader, handle in self._services:
                 try:
-                    for cdr in take_raw(reader):
-                        handle(cdr)
+                    for cdr, info in take_raw(reader, with_info=True):
+                        handle(cdr, info)
                 except Exception as exc:                 # a bad request: no reply, the server goes on
                     self.failures += 1
                     _warn_once(f"ROS 2 service request failed: {_reason(exc)}")

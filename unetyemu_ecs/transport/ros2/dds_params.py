@@ -5,7 +5,10 @@ A ROS 2 service over DDS is two topics: requests on ``rq/<node>/<service>Request
 (``..._Response_``), QoS Reliable / Volatile / KeepLast(10). rmw_cyclonedds_cpp puts a 16-byte
 header in front of each payload, right after the CDR encapsulation (``cdds_request_header_t``: the
 client's 64-bit id, then the request's int64 sequence number); a reply echoes the request's header
-and the client picks its own replies by it. Served here: ``list_parameters``, ``get_parameters``,
+and the client picks its own replies by it. As rmw_cyclonedds, the service's endpoints carry
+``serviceid=...;`` in USER_DATA (a client takes the service as available once it has matched a
+request reader and a reply writer with the same id), and a reply waits (at most 0.5 s) until the
+reply writer has matched the reader of the client named by ``clientid=`` on its request writer. Served here: ``list_parameters``, ``get_parameters``,
 ``describe_parameters``, ``get_parameter_types``, ``set_parameters`` and
 ``set_parameters_atomically`` (which refuse: every parameter is read-only).
 
@@ -117,18 +120,20 @@ class ParameterServer:
         store = service_typestore()
         self.services: list[tuple[Any, Any]] = []
         self._writers: dict[str, Any] = {}
+        reader_of: dict[str, Any] = {}
         for service, srv in SERVICE_NAMES.items():
             for suffix, prefix, part in (("Request", "rq", "Request"), ("Reply", "rr", "Response")):
                 type_name = f"rcl_interfaces/srv/{srv}_{part}"
                 qos = Qos(Policy.Reliability.Reliable(duration(milliseconds=MAX_BLOCKING_MS)),
                           Policy.Durability.Volatile, Policy.History.KeepLast(10),
                           Policy.DataRepresentation(use_cdrv0_representation=True),
-                          Policy.Userdata(f"typehash={store.hash_rihs01(type_name)};".encode()))
+                          Policy.Userdata(f"serviceid={self._service_id(dp, service)};"
+                                          f"typehash={store.hash_rihs01(type_name)};".encode()))
                 topic = Topic(dp, f"{prefix}/{NODE_NAME}/{service}{suffix}", wire_type(type_name), qos=qos)
                 if prefix == "rq":
-                    reader = DataReader(dp, topic, qos=qos)
+                    reader = reader_of[service] = DataReader(dp, topic, qos=qos)
                     publisher.reader_gids.append(reader.guid.bytes)
-                    self.services.append((reader, self._handler(service, srv)))
+                    self.services.append((reader, self._handler(service, srv, reader_of)))
                 else:
                     writer = self._writers[service] = DataWriter(dp, topic, qos=qos)
                     publisher.writer_gids.append(writer.guid.bytes)
@@ -139,10 +144,10 @@ class ParameterServer:
             new_parameters=[Parameter(name=k, value=parameter_value(v)) for k, v in sorted(self.parameters.items())],
             changed_parameters=[], deleted_parameters=[]))
 
-    def _handler(self, service: str, srv: str) -> Any:
+    def _handler(self, service: str, srv: str, reader_of: dict[str, Any]) -> Any:
         store = service_typestore()
 
-        def handle(cdr: bytes) -> None:                  # command listener thread
+        def handle(cdr: bytes, info: Any) -> None:       # command listener thread
             if len(cdr) < ENCAPSULATION_BYTES + HEADER_BYTES:
                 raise ValueError(f"{service} request of {len(cdr)} bytes has no request header")
             header = cdr[ENCAPSULATION_BYTES:ENCAPSULATION_BYTES + HEADER_BYTES]
@@ -151,11 +156,50 @@ class ParameterServer:
             response = getattr(self, f"_{service}")(request)
             out = bytes(store.serialize_cdr(response, response.__msgtype__))
             writer = self._writers[service]
+            client = self._client_id(reader_of[service], info.publication_handle)
             deadline = time.monotonic() + REPLY_MATCH_WAIT_S
-            while not writer.get_matched_subscriptions() and time.monotonic() < deadline:
+            while not self._reply_reader_matched(writer, client) and time.monotonic() < deadline:
                 time.sleep(0.01)                         # the client's reply reader is still being discovered
             _write_raw(writer, out[:ENCAPSULATION_BYTES] + header + out[ENCAPSULATION_BYTES:])
         return handle
+
+    @staticmethod
+    def _service_id(participant: Any, service: str) -> str:
+        """A unique id for one service's reader/writer pair, written as rmw_cyclonedds writes them."""
+        raw = bytes(participant.guid.bytes[:12]) + (list(SERVICE_NAMES).index(service) + 1).to_bytes(4, "big")
+        return ".".join(f"{b:x}" for b in raw)
+
+    @staticmethod
+    def _user_data_key(qos: Any, key: str) -> str | None:
+        from cyclonedds.core import Policy
+
+        user = qos[Policy.Userdata] if qos is not None else None
+        for item in (user.data.decode(errors="replace") if user else "").split(";"):
+            name, _, value = item.partition("=")
+            if name == key:
+                return value
+        return None
+
+    def _client_id(self, reader: Any, publication_handle: int) -> str | None:
+        """The ``clientid`` an rmw_cyclonedds client puts in its request writer's USER_DATA (or None)."""
+        try:
+            return self._user_data_key(reader.get_matched_publication_data(publication_handle).qos, "clientid")
+        except Exception:                               # the client's writer is gone already
+            return None
+
+    def _reply_reader_matched(self, writer: Any, client: str | None) -> bool:
+        """Whether the reply writer has matched the requesting client's reply reader (as rmw_cyclonedds
+        servers wait for it, 100 ms there); any reader for a client without a ``clientid``."""
+        handles = writer.get_matched_subscriptions()
+        if client is None:
+            return bool(handles)
+        for handle in handles:
+            try:
+                if self._user_data_key(writer.get_matched_subscription_data(handle).qos, "clientid") == client:
+                    return True
+            except Exception:
+                continue
+        return False
 
     def _response(self, srv: str, **fields: Any) -> Any:
         return service_typestore().types[f"rcl_interfaces/srv/{srv}_Response"](**fields)
