@@ -25,7 +25,7 @@ from functools import cache
 from typing import Any
 
 from ...sensors.messages import msg_type, stamp
-from .dds_backend import MAX_BLOCKING_MS, NODE_NAME, DdsPublisher, _write_raw, typestore
+from .dds_backend import MAX_BLOCKING_MS, NODE_NAME, DdsPublisher, _write_raw
 
 HEADER_BYTES = 16                # cdds_request_header_t: uint64 client id + int64 sequence number
 ENCAPSULATION_BYTES = 4
