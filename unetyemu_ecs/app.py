@@ -634,12 +634,12 @@ class Simulation:
                 write_summary(self.summary(), self.out_dir)
             except OSError as exc:
                 self.services.note(self.sim_time_s, "", f"cannot write summary.json: {exc}")
+        if self._ros2_bridge is not None:       # first: no command arrives while the rest shuts down
+            self._ros2_bridge.close()
+            self._ros2_bridge = None
         self._closed = True
         if self._log is not None:
             self._log.close()
-        if self._ros2_bridge is not None:
-            self._ros2_bridge.close()
-            self._ros2_bridge = None
         if self.physics is not None:
             self.physics.close()
         self.ecs.close()
