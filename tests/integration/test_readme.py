@@ -26,7 +26,7 @@ SHELL_BLOCKS_TESTED_BY = {
     "apt-get update": "tests/install (the test command is what .ci/run runs; the first command: slow test)",
     "# load and start a mission": "tests/integration/test_ros2_readme.py (each ros2 topic pub sent to a running "
                                   "simulation by a DDS peer)",
-    "export ROS_AUTOMATIC_DISCOVERY_RANGE": "tests/integration/test_ros2_*.py (discovery and topics by DDS peers; "
+    "export RMW_IMPLEMENTATION": "tests/integration/test_ros2_*.py (discovery and topics by DDS peers; "
                                             "ros2 and rviz2 themselves need a ROS 2 install)",
 }
 

@@ -93,7 +93,6 @@ FIXED_GARBAGE = {  # what the field report sent, and the extremes: always part o
 }
 
 
-@pytest.mark.slow
 @settings(max_examples=1, deadline=None, phases=[Phase.generate], suppress_health_check=list(HealthCheck))
 @given(data=st.data())
 def test_random_bytes_and_typed_garbage_on_every_command_topic_leave_the_commands_working(data, tmp_path_factory):
@@ -272,7 +271,7 @@ def test_the_readme_ros2_topic_pub_commands_are_accepted_by_the_delivery_scenari
         events = [(who, text) for _, who, text in sim.events]
     # THEN each was accepted: no rejection, and each commanded vehicle's command shows in the events
     assert got["written"] == len(payloads)
-    assert not [e for e in events if e[1].startswith("rejected")], events
+    assert not [e for e in events if e[1].startswith(("rejected", "warning"))], events
     for topic, _, _ in commands:
         vehicle = topic.split("/")[1]
         assert any(who == vehicle for who, _ in events), (topic, events)
