@@ -70,10 +70,15 @@ def build_layout(config: SceneConfig, seed: int) -> SceneLayout:
             raise ValueError(f"{where}: duplicate object name {name!r} (already used by {names[name]})")
         names[name] = where
 
+    next_k: dict[str, int] = {}
+
     def next_name(prefix: str) -> str:
-        k = 1
+        # the lowest free prefix_k; names are only added, so the search resumes where it stopped
+        # (linear in the object count, where restarting at 1 was quadratic: 20 000 trees took 100 s)
+        k = next_k.get(prefix, 1)
         while f"{prefix}_{k}" in names:
             k += 1
+        next_k[prefix] = k
         return f"{prefix}_{k}"
 
     # Pads go last in the object list; keep the generated ones aside and re-append them below.
