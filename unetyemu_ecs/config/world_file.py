@@ -309,15 +309,20 @@ def _check_spawn_clearance(entities: list[EntityDefinition], where: list[Path], 
             issues.append(src.issue(path, f"{ent.name} starts inside {names}{more} (its box: centre "
                                           f"{np.round(center, 2).tolist()} m, half extents "
                                           f"{np.round(half, 2).tolist()} m)"))
-    for a in range(len(entities)):
-        for b in range(a):
-            ca, ha = boxes[a]
-            cb, hb = boxes[b]
-            if box_overlaps_box(ca, ha, entities[a].yaw_rad, cb, hb, entities[b].yaw_rad):
-                first = where[b]
-                issues.append(src.issue((*where[a], "pose"),
-                                        f"{entities[a].name} overlaps {entities[b].name} at spawn "
-                                        f"({first[0]}[{first[1]}], line {src.line_of(first)})"))
+    if not boxes:
+        return
+    # only pairs whose bounding spheres meet get the exact test (1 280 bodies are 800 000 pairs)
+    centers = np.array([c for c, _ in boxes])
+    radii = np.array([float(np.linalg.norm(h)) for _, h in boxes])
+    near = np.linalg.norm(centers[:, None, :] - centers[None, :, :], axis=2) < radii[:, None] + radii[None, :]
+    for a, b in zip(*np.nonzero(np.tril(near, k=-1))):
+        a, b = int(a), int(b)
+        ca, ha = boxes[a]
+        cb, hb = boxes[b]
+        if box_overlaps_box(ca, ha, entities[a].yaw_rad, cb, hb, entities[b].yaw_rad):
+            first = where[b]
+            issues.append(src.issue((*where[a], "pose"), f"{entities[a].name} overlaps {entities[b].name} at spawn "
+                                                         f"({first[0]}[{first[1]}], line {src.line_of(first)})"))
 
 
 def _path_in_message(message: str, default: Path) -> Path:
