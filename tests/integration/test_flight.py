@@ -101,7 +101,7 @@ PICKUP_MISSION = """
 
 
 def _package(mass: float) -> str:
-    return f"  - {{name: parcel, mass_kg: {mass}, size_m: [0.4, 0.4, 0.3], pose: {{position_m: [1.0, 0.0, 0.15]}}}}"
+    return f"  - {{name: parcel, mass_kg: {mass}, size_m: [0.4, 0.4, 0.3], pose: {{pad: home, offset_m: [1.0, 0.0]}}}}"
 
 
 def test_picking_up_2_5_kg_raises_hover_thrust_by_its_weight_and_rotor_power_by_the_mass_ratio_to_1_5(

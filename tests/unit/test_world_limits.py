@@ -292,3 +292,8 @@ def test_bodies_standing_side_by_side_on_a_pad_and_parked_cars_load():
     world = load_world(WORLDS / "urban_delivery.yaml")
     # THEN it loads with every body
     assert len(world.vehicles) == 7 and len(world.packages) == 1
+
+
+def test_a_vehicle_off_the_edge_of_the_ground_is_refused():
+    text = BASE.replace("pose: {pad: home}", "pose: {position_m: [5000, 0, 2]}")
+    assert _one_issue(text).startswith("w.yaml:14: vehicles[0].pose: d1 starts off the ground at (5000, 0) m")
