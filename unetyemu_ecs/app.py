@@ -34,6 +34,7 @@ from .systems.outputs import TrajectoryLogSystem
 from .systems.physics import PhysicsStepSystem
 from .systems.state import StateReadbackSystem
 from .transport.ros2.bridge import resolve_backend
+from .config.limits import MAX_DURATION_S, MAX_Z_M
 from .mission import MissionSpec, mission_reference_issues, parse_mission
 from .mission.spec import MAX_CRUISE_SPEED_M_S
 from .transport.bus import Arm, CmdVel, Drive, DriveRoute, Inbox, LoadMission, SetTarget, Teleop
@@ -79,8 +80,6 @@ class RunStats:
 ProgressFn = Callable[[float, float, float], None]   # (sim_time_s, end_time_s, wall_elapsed_s)
 
 
-MAX_TARGET_ALTITUDE_M = 1000.0   # highest target a drone is sent to [m]: far above any city, below the
-                                 # altitudes where the ground-level air and GPS models stop holding
 MAX_YAW_RATE_RAD_S = 2 * math.pi  # a turn a second: beyond any drone's or car's yaw-rate limit
 MAX_LAPS = 10_000                # laps of a looping car route (0 = forever)
 
@@ -307,6 +306,9 @@ class Simulation:
         end_s = float(until) if until is not None else self.sim_time_s + float(duration)  # type: ignore[arg-type]
         if end_s < self.sim_time_s:
             raise ValueError(f"run(): until={until!r} s is before the current sim time {self.sim_time_s:g} s")
+        if end_s - self.sim_time_s > MAX_DURATION_S:
+            raise ValueError(f"run(): at most {MAX_DURATION_S:g} s (a week) of sim time per call, got "
+                             f"{end_s - self.sim_time_s:g} s")
         if rate is not None and not (_is_real(rate) and math.isfinite(rate) and rate > 0):
             raise ValueError(f"rate must be a finite number > 0 or None (as fast as possible), got {rate!r}")
         end_step = int(round(end_s / self.dt_s))
@@ -368,8 +370,8 @@ class Simulation:
         if speed is not None and not 0 < speed <= MAX_CRUISE_SPEED_M_S:
             raise ValueError(f"set_target({name!r}): speed must be in (0, {MAX_CRUISE_SPEED_M_S:g}] m/s, got {speed}")
         self._check_in_world(f"set_target({name!r})", [(x, y)])
-        if kind == "quadrotor" and not 0.0 <= z <= MAX_TARGET_ALTITUDE_M:
-            raise ValueError(f"set_target({name!r}): z must be in [0, {MAX_TARGET_ALTITUDE_M:g}] m (ENU height above "
+        if kind == "quadrotor" and not 0.0 <= z <= MAX_Z_M:
+            raise ValueError(f"set_target({name!r}): z must be in [0, {MAX_Z_M:g}] m (ENU height above "
                              f"the ground plane), got {z}")
         yaw = None if yaw_deg is None else math.radians(yaw_deg)
         self.inbox.put(SetTarget(name, (float(x), float(y), float(z)), yaw, None if speed is None else float(speed)))

@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 from typing import Any, TextIO
 
-from .units import MAX_DURATION_S
+from .config.limits import MAX_DURATION_S
 
 EXIT_OK = 0
 EXIT_FAILURE = 1

@@ -17,16 +17,12 @@ from numpy.typing import ArrayLike
 
 GRAVITY_M_S2 = 9.81
 AIR_DENSITY_KG_M3 = 1.225
-# Longest simulated run accepted from a world file, the CLI or the API: a week of sim time (at 240 Hz,
-# 145 million steps; longer runs are campaigns of several runs, not one)
-MAX_DURATION_S = 7 * 24 * 3600.0
 DEG_TO_RAD = np.pi / 180.0
 RAD_TO_DEG = 180.0 / np.pi
 
 __all__ = [
     "GRAVITY_M_S2",
     "AIR_DENSITY_KG_M3",
-    "MAX_DURATION_S",
     "DEG_TO_RAD",
     "RAD_TO_DEG",
     "deg_to_rad",

@@ -62,6 +62,7 @@ def test_step_zero_and_numpy_integers_are_fine(sim):
     ({"duration": float("nan")}, "finite number"),
     ({"duration": float("inf")}, "finite number"),
     ({"duration": "10"}, "finite number"),
+    ({"duration": 1e300}, "at most 604800 s"),
     ({"until": 0.0}, "before the current sim time"),
     ({"duration": 1.0, "rate": 0}, "rate must be"),
     ({"duration": 1.0, "rate": float("nan")}, "rate must be"),

@@ -91,8 +91,8 @@ def test_targets_outside_the_world_are_refused_from_python_and_from_ros():
     with make() as sim:
         with pytest.raises(ValueError, match=r"outside the world, which spans x in \[-150, 150\] m"):
             sim.set_target("d1", 1e9, 0.0, 10.0)
-        with pytest.raises(ValueError, match=r"z must be in \[0, 1000\] m"):
-            sim.set_target("d1", 10.0, 0.0, 5000.0)
+        with pytest.raises(ValueError, match=r"z must be in \[0, 10000\] m"):
+            sim.set_target("d1", 10.0, 0.0, 50000.0)
         with pytest.raises(ValueError, match="outside the world"):
             apply_command(sim, "c1", "car", "target", float_array([0, 1e9, 0, 0, 5]))
         with pytest.raises(ValueError, match="outside the world"):

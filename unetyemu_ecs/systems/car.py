@@ -28,7 +28,7 @@ from ..transport.bus import Arm, CmdVel, Drive, DriveRoute, SetTarget
 from ..units import GRAVITY_M_S2
 from ..world import StepContext
 from .car_state import CarPath, DriveMode, declare_car_arrays, set_path
-from .commands import claim, lapsed_rows, warn_if_obstructed
+from .commands import claim, hold_until_s, lapsed_rows, warn_if_obstructed
 from .rows import gather_rows, stack_params
 
 STOPPED_SPEED_M_S = 0.2        # a route is done when the car is this slow within the arrival radius
@@ -44,8 +44,9 @@ def _gains(ent: int) -> CarControllerGains:
 class CarCommandSystem(esper.Processor):
     """Turn commands into drive modes, paths and setpoints. Phase: COMMANDS (order 20).
 
-    Reads: the inbox (commands for cars), CarRoute components (started at t = 0). Writes:
-    drive_mode, drive_cmd, cmd_vel, car_path.
+    Reads: the inbox (commands for cars), CarRoute components (started at t = 0), cmd_hold_until_s.
+    Writes: drive_mode, drive_cmd, cmd_vel, car_path, cmd_hold_until_s (a streamed teleop/cmd_vel
+    that lapses brakes the car to a stop).
     """
 
     phase = Phase.COMMANDS
@@ -67,6 +68,8 @@ class CarCommandSystem(esper.Processor):
             error = self._apply(ctx, ent, msg)
             if error:
                 ctx.services.note(ctx.sim_time_s, msg.vehicle, f"rejected {msg.kind} command: {error}")
+            else:
+                f.cmd_hold_until_s[f.row_of(ent)] = hold_until_s(ctx, msg)
         for row in lapsed_rows(ctx):
             ent = int(f.entity[row])
             if esper.has_component(ent, CarDynamics):
@@ -99,7 +102,6 @@ class CarCommandSystem(esper.Processor):
         f = ctx.fleet
         row = f.row_of(ent)
         name = msg.vehicle
-        f.cmd_hold_until_s[row] = ctx.sim_time_s + msg.hold_s if getattr(msg, "hold_s", None) else np.inf
         if isinstance(msg, SetTarget):
             values = [*msg.pos_enu_m, *(v for v in (msg.speed_m_s,) if v is not None)]
             if not all(math.isfinite(v) for v in values):

@@ -72,8 +72,9 @@ def claim(ctx: StepContext, has: type) -> list[tuple[int, object]]:
 class FlightCommandSystem(esper.Processor):
     """Turn commands into modes, routes, sticks and missions.
 
-    Phase: COMMANDS. Reads: the inbox, TeleopScript components. Writes: flight_mode, stick, routes,
-    MissionRuntime components.
+    Phase: COMMANDS. Reads: the inbox, TeleopScript components, cmd_hold_until_s. Writes: flight_mode,
+    stick, routes, cmd_hold_until_s (a streamed teleop/cmd_vel that lapses sends the drone to hover),
+    MissionRuntime components. A live command ends the drone's TeleopScript.
     """
 
     phase = Phase.COMMANDS
@@ -90,6 +91,8 @@ class FlightCommandSystem(esper.Processor):
             error = self._apply(ctx, ent, msg)
             if error:
                 ctx.services.note(ctx.sim_time_s, msg.vehicle, f"rejected {msg.kind} command: {error}")
+            else:
+                f.cmd_hold_until_s[f.row_of(ent)] = hold_until_s(ctx, msg)
         for row in lapsed_rows(ctx):
             ent = int(f.entity[row])
             if esper.has_component(ent, GuidanceLimits):
@@ -131,7 +134,6 @@ class FlightCommandSystem(esper.Processor):
         f = ctx.fleet
         row = esper.component_for_entity(ent, FleetSlot).row
         lim = esper.component_for_entity(ent, GuidanceLimits)
-        f.cmd_hold_until_s[row] = ctx.sim_time_s + msg.hold_s if getattr(msg, "hold_s", None) else np.inf
         if isinstance(msg, SetTarget):
             values = [*msg.pos_enu_m, *(v for v in (msg.yaw_rad, msg.speed_m_s) if v is not None)]
             if not all(math.isfinite(v) for v in values):
@@ -194,13 +196,19 @@ def _hold_position(f, row: int) -> None:
     set_route(f, row, Route(np.array([pos, pos]), np.array([sp, sp]), np.nan))
 
 
+def hold_until_s(ctx: StepContext, msg: object) -> float:
+    """Sim time [s] at which an accepted command lapses: now + its ``hold_s`` for a streamed teleop or
+    cmd_vel, never (inf) for anything else."""
+    hold = getattr(msg, "hold_s", None)
+    return ctx.sim_time_s + hold if hold else np.inf
+
+
 def lapsed_rows(ctx: StepContext) -> np.ndarray:
     """Rows whose streamed teleop/cmd_vel command has lapsed this step (``cmd_hold_until_s`` passed)."""
-    f = ctx.fleet
-    held = getattr(f, "cmd_hold_until_s", None)
+    held = getattr(ctx.fleet, "cmd_hold_until_s", None)
     if held is None:
         return np.empty(0, dtype=np.intp)
-    return np.flatnonzero(held[:f.capacity] <= ctx.sim_time_s + 1e-9)
+    return np.flatnonzero(held <= ctx.sim_time_s + 1e-9)
 
 
 def warn_if_obstructed(ctx: StepContext, ent: int, vehicle: str, start_enu_m: np.ndarray,
