@@ -77,6 +77,9 @@ def debian12_root(tmp_path: Path):
             done = _sh("mount", *args, str(root / target))
             assert done.returncode == 0, done.stderr
             mounts.append(root / target)
+        # a slave copy of /dev: unmounting it later can never unmount the host's /dev/pts or /dev/shm
+        done = _sh("mount", "--make-rslave", str(root / "dev"))
+        assert done.returncode == 0, done.stderr
         yield root
     finally:
         for target in reversed(mounts):
