@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 import textwrap
 from pathlib import Path
 
@@ -10,6 +11,13 @@ import pytest
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 WORLDS = REPO_ROOT / "worlds"
+
+
+def unetyemu_command() -> list[str]:
+    """How to run the ``unetyemu`` CLI of the interpreter running the tests: the console script next to
+    it (the venv's ``.venv/bin/unetyemu``), never another one found on PATH; else ``python -m``."""
+    script = Path(sys.executable).with_name("unetyemu")
+    return [str(script)] if script.exists() else [sys.executable, "-m", "unetyemu_ecs.cli"]
 
 
 @pytest.fixture

@@ -8,18 +8,16 @@ import os
 import shutil
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
 
-from ..conftest import REPO_ROOT, WORLDS
+from ..conftest import REPO_ROOT, WORLDS, unetyemu_command
 
 
 def unetyemu(*args: str, cwd: Path = REPO_ROOT, timeout: float = 300) -> subprocess.CompletedProcess:
-    exe = shutil.which("unetyemu")
-    cmd = [exe] if exe else [sys.executable, "-m", "unetyemu_ecs.cli"]
+    cmd = unetyemu_command()
     return subprocess.run([*cmd, *args], cwd=cwd, capture_output=True, text=True, timeout=timeout)
 
 
@@ -113,8 +111,7 @@ def _start_and_stop(tmp_path: Path, signals: list[signal.Signals], gap_s: float 
     """Run the main scenario in real time; once 12 log rows are written (1.1 s of sim time, however slow
     the machine), send ``signals`` ``gap_s`` apart; return (process, stdout, stderr, out dir)."""
     out = tmp_path / "run"
-    exe = shutil.which("unetyemu")
-    cmd = [exe] if exe else [sys.executable, "-m", "unetyemu_ecs.cli"]
+    cmd = unetyemu_command()
     proc = subprocess.Popen([*cmd, "run", str(WORLDS / "urban_delivery.yaml"), "--rate", "1", "--quiet",
                              "--out", str(out)], cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True)
@@ -198,8 +195,7 @@ def test_version_and_numbers_out_of_range_are_clear(tmp_path):
 
 def test_gui_without_a_display_says_so_instead_of_an_x_error(tmp_path):
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
-    exe = shutil.which("unetyemu")
-    cmd = [exe] if exe else [sys.executable, "-m", "unetyemu_ecs.cli"]
+    cmd = unetyemu_command()
     res = subprocess.run([*cmd, "run", str(WORLDS / "empty.yaml"), "--gui", "--duration", "0.1",
                           "--out", str(tmp_path / "g")], cwd=REPO_ROOT, capture_output=True, text=True, timeout=120,
                          env=env)
@@ -216,8 +212,7 @@ def test_plugins_shows_what_the_presets_give_instead_of_required():
 
 
 def test_plugins_into_a_closed_pipe_is_quiet():
-    exe = shutil.which("unetyemu")
-    cmd = " ".join([exe] if exe else [sys.executable, "-m", "unetyemu_ecs.cli"])
+    cmd = " ".join(unetyemu_command())
     res = subprocess.run(f"{cmd} plugins | head -1", shell=True, cwd=REPO_ROOT, capture_output=True, text=True,
                          timeout=120)
     assert "Traceback" not in res.stderr and "BrokenPipe" not in res.stderr
@@ -225,16 +220,14 @@ def test_plugins_into_a_closed_pipe_is_quiet():
 
 def test_a_bad_ros_domain_id_is_a_clear_error_not_a_traceback(tmp_path):
     env = {**os.environ, "ROS_DOMAIN_ID": "abc"}
-    exe = shutil.which("unetyemu")
-    cmd = [exe] if exe else [sys.executable, "-m", "unetyemu_ecs.cli"]
+    cmd = unetyemu_command()
     res = subprocess.run([*cmd, "run", str(WORLDS / "empty.yaml"), "--ros2", "dds", "--duration", "0.1",
                           "--out", str(tmp_path / "r")], cwd=REPO_ROOT, capture_output=True, text=True, timeout=120, env=env)
     assert res.returncode == 1 and "ROS_DOMAIN_ID must be an integer" in res.stderr and "Traceback" not in res.stderr
 
 
 def test_run_with_ros2_auto_says_which_backend_it_chose_and_rclpy_without_ros_is_a_clear_error(tmp_path):
-    exe = shutil.which("unetyemu")
-    cmd = [exe] if exe else [sys.executable, "-m", "unetyemu_ecs.cli"]
+    cmd = unetyemu_command()
     env = {k: v for k, v in os.environ.items() if k not in ("CYCLONEDDS_URI", "ROS_DOMAIN_ID")}
     res = subprocess.run([*cmd, "run", str(WORLDS / "empty.yaml"), "--ros2", "auto", "--duration", "0.5",
                           "--out", str(tmp_path / "a")], cwd=REPO_ROOT, capture_output=True, text=True, timeout=120,

@@ -205,12 +205,12 @@ def test_the_ros_discovery_info_writer_announces_its_type_hash_as_rmw_does(excha
 def test_keyboard_teleop_in_a_terminal_drives_the_drone_over_ros2():
     import os
     import pty
-    import shutil
+
+    from ..conftest import unetyemu_command
 
     # GIVEN `unetyemu teleop d1` in a pseudo-terminal and the simulation listening
     master, slave = pty.openpty()
-    exe = shutil.which("unetyemu")
-    cmd = [exe] if exe else [sys.executable, "-m", "unetyemu_ecs.cli"]
+    cmd = unetyemu_command()
     teleop = subprocess.Popen([*cmd, "teleop", "d1"], stdin=slave, stdout=slave, stderr=slave, close_fds=True)
     os.close(slave)
     try:

@@ -46,3 +46,14 @@ def test_pointcloud2_packs_20_byte_points_that_read_back():
     assert msg.width == 2 and msg.point_step == 20 and msg.row_step == 40 and len(msg.data) == 40
     assert_allclose(np.c_[back["x"], back["y"], back["z"]], pts)
     assert list(back["ring"]) == [0, 15] and msg.header.stamp.sec == 1 and msg.header.stamp.nanosec == 500_000_000
+
+
+def test_a_failed_open3d_import_names_the_system_package_that_is_missing():
+    from unetyemu_ecs.sensors.raycast import open3d_import_hint
+
+    assert open3d_import_hint("libEGL.so.1: cannot open shared object file") == \
+        "install the system package: apt-get install -y libegl1"
+    assert open3d_import_hint("libGL.so.1: cannot open shared object file") == \
+        "install the system package: apt-get install -y libgl1"
+    assert "libusb-1.0-0" in open3d_import_hint("libusb-1.0.so.0: cannot open shared object file")
+    assert "pip install open3d-cpu" in open3d_import_hint("No module named 'open3d'")

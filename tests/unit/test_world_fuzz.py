@@ -10,10 +10,8 @@ from __future__ import annotations
 import copy
 import math
 import resource
-import shutil
 import signal
 import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +22,7 @@ from hypothesis import strategies as st
 
 from unetyemu_ecs import ConfigError, Simulation, load_world
 
-from ..conftest import REPO_ROOT, WORLDS
+from ..conftest import REPO_ROOT, WORLDS, unetyemu_command
 
 WORLD_TEXTS = {p.name: p.read_text(encoding="utf-8") for p in sorted(WORLDS.glob("*.yaml"))}
 WORLD_DOCS = {name: yaml.safe_load(text) for name, text in WORLD_TEXTS.items()}
@@ -178,8 +176,7 @@ def _limit_memory() -> None:
 def _run_cli(data: bytes, tmp_path: Path) -> None:
     path = tmp_path / "fuzz.yaml"
     path.write_bytes(data)
-    exe = shutil.which("unetyemu")
-    cmd = [exe] if exe else [sys.executable, "-m", "unetyemu_ecs.cli"]
+    cmd = unetyemu_command()
     res = subprocess.run([*cmd, "validate", str(path)], cwd=REPO_ROOT, capture_output=True, text=True,
                          timeout=EXAMPLE_TIME_LIMIT_S, preexec_fn=_limit_memory)
     assert "Traceback" not in res.stderr, res.stderr
@@ -227,8 +224,7 @@ def test_unetyemu_validate_on_a_mutated_world_exits_0_or_2_with_a_message_and_no
 
 @pytest.mark.parametrize("device", ["/dev/zero", "/dev/null", "/dev/urandom"])
 def test_unetyemu_validate_on_a_device_exits_2_at_once(device):
-    exe = shutil.which("unetyemu")
-    cmd = [exe] if exe else [sys.executable, "-m", "unetyemu_ecs.cli"]
+    cmd = unetyemu_command()
     res = subprocess.run([*cmd, "validate", device], capture_output=True, text=True, timeout=EXAMPLE_TIME_LIMIT_S,
                          preexec_fn=_limit_memory)
     assert res.returncode == 2 and res.stderr.startswith(f"{device}: <root>: ") and "Traceback" not in res.stderr

@@ -43,7 +43,6 @@ def prescan(text: str, source: str, *, max_depth: int, max_nodes: int, aliases: 
         raise ConfigError([Issue(source, event.start_mark.line + 1, (), message)])
 
     open_anchors: list[str | None] = []   # anchor of each open collection
-    depth_at_open: list[int] = []
     sizes: list[int] = []                 # nodes (expanded) inside each open collection so far
     deepest: list[int] = []               # depth below each open collection
     anchors: dict[str, tuple[int, int]] = {}   # anchor -> (expanded nodes, depth below it)

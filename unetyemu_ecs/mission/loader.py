@@ -56,8 +56,7 @@ from dataclasses import dataclass
 from typing import Annotated, Any
 
 
-from ..config.schema import (ConfigError, FieldError, Ge, Gt, Issue, NonEmpty, SourceMap, convert,
-                             parse)
+from ..config.schema import ConfigError, FieldError, Gt, Issue, NonEmpty, SourceMap, convert, parse
 from ..config.limits import (MAX_MISSION_NESTING, MAX_MISSION_NODES, MAX_MISSION_STEPS, MAX_MISSION_TEXT_BYTES, XM,
                              ZM, Deg, Name)
 from ..config.schema import MaxLen

@@ -8,7 +8,6 @@ the world ENU frame (``map``): ground truth does not drift. Twist in the child f
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated
 
 import numpy as np
 

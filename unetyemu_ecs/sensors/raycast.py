@@ -34,14 +34,27 @@ class SensorUnavailable(RuntimeError):
     """A sensor's library cannot be loaded on this machine (the message says what to install)."""
 
 
+# system libraries Open3D's wheel links against -> the Debian/Ubuntu package that provides each
+_OPEN3D_SYSTEM_LIBS = {"libusb-1.0": "libusb-1.0-0", "libGL.so": "libgl1", "libEGL.so": "libegl1"}
+
+
+def open3d_import_hint(error: str) -> str:
+    """What to install when ``import open3d`` failed with ``error``: a system library, or Open3D itself."""
+    missing = [pkg for lib, pkg in _OPEN3D_SYSTEM_LIBS.items() if lib in error]
+    if missing:
+        return f"install the system package{'s' if len(missing) > 1 else ''}: apt-get install -y {' '.join(missing)}"
+    if "No module named" in error:
+        return "install it into the simulator's environment: .venv/bin/pip install open3d-cpu==0.20.0"
+    return "it needs the system libraries libusb-1.0-0, libgl1 and libegl1 (apt-get install -y ...)"
+
+
 def import_open3d() -> Any:
-    """Import Open3D, or explain what is missing (on Debian its import needs libusb-1.0-0)."""
+    """Import Open3D, or explain what is missing (a fresh Debian needs libusb-1.0-0, libgl1, libegl1)."""
     try:
         import open3d
     except ImportError as exc:
-        hint = (" -- install the system package: apt-get install -y libusb-1.0-0" if "libusb" in str(exc) else
-                " -- install it with: python3 -m pip install open3d-cpu==0.20.0")
-        raise SensorUnavailable(f"LiDAR and cameras need Open3D, which does not import here ({exc}){hint}") from exc
+        raise SensorUnavailable(f"LiDAR and cameras need Open3D, which does not import here ({exc}) -- "
+                                f"{open3d_import_hint(str(exc))}") from exc
     return open3d
 
 
