@@ -130,11 +130,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the command line ``argv`` (None: this process's own arguments, as the ``unetyemu``
+    executable does; the process then ends, so ``run`` leaves its signal handlers in place and a
+    late second Ctrl-C cannot turn the clean exit into a death by signal)."""
     parser = build_parser()
     args = parser.parse_args(argv)  # exits 2 on bad arguments
     try:
         if args.command == "run":
-            return cmd_run(args)
+            return cmd_run(args, restore_signals=argv is not None)
         if args.command == "validate":
             return cmd_validate(args)
         if args.command == "plot":
@@ -160,9 +163,10 @@ class _StopOnSignal:
     128 + the first signal's number (130 for Ctrl-C), as a shell reports a process ended by it.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, restore: bool = True) -> None:
         self.signum: int | None = None
         self.sim: Any = None
+        self.restore = restore          # False: ignore stop signals from the end of the run until the process ends
         self._old: dict[int, Any] = {}
 
     def __enter__(self) -> _StopOnSignal:
@@ -177,8 +181,11 @@ class _StopOnSignal:
             self.sim.stop()
 
     def __exit__(self, *exc: object) -> None:
+        self.sim = None
         for sig, old in self._old.items():
-            signal.signal(sig, old)
+            # the process is about to end: ignore, do not just keep our handler (Python's shutdown
+            # resets handled signals to their default action, which would end the process by signal)
+            signal.signal(sig, old if self.restore else signal.SIG_IGN)
 
     @property
     def exit_code(self) -> int | None:
@@ -236,8 +243,8 @@ def _fresh_out_dir(args: argparse.Namespace, world_name: str) -> Path | str:
     return out
 
 
-def cmd_run(args: argparse.Namespace) -> int:
-    with _StopOnSignal() as stop:
+def cmd_run(args: argparse.Namespace, restore_signals: bool = True) -> int:
+    with _StopOnSignal(restore=restore_signals) as stop:
         code = _run(args, stop)
     return code
 
