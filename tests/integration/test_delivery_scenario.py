@@ -3,18 +3,30 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import filecmp
 
 import numpy as np
 import pytest
 
-from unetyemu_ecs import Simulation
+from unetyemu_ecs import Simulation, load_world
 from unetyemu_ecs.cli import main as cli_main
 from unetyemu_ecs.components.car import CarRoute
+from unetyemu_ecs.sensors.base import SensorSpec
 
 from ..conftest import WORLDS
 
 WORLD = WORLDS / "urban_delivery.yaml"
+
+
+def without_sensors(path=WORLD):
+    """The world of ``path`` with its sensors taken off: they only read the state, so flights, drives,
+    payloads and logs are the same, at a third of the cost (the sensors of this world are tested by
+    test_ros2_dds.py, which runs it with all of them)."""
+    world = load_world(path)
+    bare = tuple(dataclasses.replace(e, components={k: c for k, c in e.components.items()
+                                                    if not isinstance(c, SensorSpec)}) for e in world.entities)
+    return dataclasses.replace(world, entities=bare)
 
 
 def _rows(path) -> list[dict[str, str]]:
@@ -26,7 +38,7 @@ def _rows(path) -> list[dict[str, str]]:
 def delivery_run(tmp_path_factory):
     """Run the whole scenario once (150 s simulated) and keep its outputs."""
     out = tmp_path_factory.mktemp("delivery")
-    with Simulation.from_file(WORLD, out_dir=out) as sim:
+    with Simulation(without_sensors(), out_dir=out) as sim:
         route = sim.component("truck1", CarRoute)
         waypoints = np.array([[w.x, w.y] for w in route.waypoints])
         nearest = np.full(len(waypoints), np.inf)            # closest the truck came to each waypoint
@@ -93,7 +105,7 @@ def test_csv_shows_the_power_step_at_pickup_and_back_after_delivery(delivery_run
 
 def test_same_world_and_seed_twice_give_identical_csv_files(tmp_path):
     for run in ("a", "b"):
-        with Simulation.from_file(WORLD, out_dir=tmp_path / run) as sim:
+        with Simulation(without_sensors(), out_dir=tmp_path / run) as sim:
             sim.run(until=20.0)
     for name in ("drone1", "drone2", "drone3", "truck1"):
         assert filecmp.cmp(tmp_path / "a" / f"{name}.csv", tmp_path / "b" / f"{name}.csv", shallow=False)
