@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+import os
 import sys
 import textwrap
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+# ROS 2 tests talk to their peers on loopback: outside a network namespace the simulator's DDS
+# participant is confined to it (its default range joins multicast on the host's interface). The
+# discovery tests run their own participants in `unshare -n` with the variable of their choice.
+os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 WORLDS = REPO_ROOT / "worlds"

@@ -237,7 +237,7 @@ def test_run_with_ros2_auto_says_which_backend_it_chose_and_rclpy_without_ros_is
     backend = "rclpy" if rclpy_available() else "dds"
     assert f"ROS 2: node /unetyemu_sim on the {backend} backend, ROS_DOMAIN_ID 0" in res.stderr
     if backend == "dds":
-        assert "discoverable on this machine only" in res.stderr
+        assert "loopback only (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST)" in res.stderr   # as tests/conftest.py sets
         res = subprocess.run([*cmd, "run", str(WORLDS / "empty.yaml"), "--ros2", "rclpy", "--duration", "0.1",
                               "--out", str(tmp_path / "r")], cwd=REPO_ROOT, capture_output=True, text=True,
                              timeout=120, env=env)
