@@ -378,11 +378,10 @@ class Simulation:
 
     def _check_in_world(self, what: str, points_xy: list[tuple[float, float]]) -> None:
         """ENU (x, y) points [m] must lie on the world's ground (its extent), where there is something to fly over."""
-        lo, hi = self.layout.extent_min_m, self.layout.extent_max_m
         for x, y in points_xy:
-            if not (lo[0] <= x <= hi[0] and lo[1] <= y <= hi[1]):
-                raise ValueError(f"{what}: ({x:g}, {y:g}) is outside the world, which spans x in [{lo[0]:g}, "
-                                 f"{hi[0]:g}] m and y in [{lo[1]:g}, {hi[1]:g}] m (ENU)")
+            if not self.layout.contains_xy(x, y):
+                raise ValueError(f"{what}: ({x:g}, {y:g}) is outside the world, which spans "
+                                 f"{self.layout.extent_text()} (ENU)")
 
     def command_timeout_s(self, name: str) -> float:
         """How long a streamed teleop/cmd_vel for vehicle ``name`` holds without a newer one [s] (0 = forever);

@@ -302,10 +302,9 @@ def _check_spawn_clearance(entities: list[EntityDefinition], where: list[Path], 
             issues.append(src.issue(path, f"{ent.name} starts underground: its bottom is at z = {bottom:.2f} m, "
                                           "below the ground (z = 0)"))
             continue
-        lo, hi = layout.extent_min_m, layout.extent_max_m
-        if not (lo[0] <= center[0] <= hi[0] and lo[1] <= center[1] <= hi[1]):
+        if not layout.contains_xy(center[0], center[1]):
             issues.append(src.issue(path, f"{ent.name} starts off the ground at ({center[0]:g}, {center[1]:g}) m: the "
-                                          f"world spans x in [{lo[0]:g}, {hi[0]:g}] m, y in [{lo[1]:g}, {hi[1]:g}] m"))
+                                          f"world spans {layout.extent_text()}"))
             continue
         hits = layout.objects_overlapping_box(center, inner, ent.yaw_rad, skip_ground=True)
         if hits:

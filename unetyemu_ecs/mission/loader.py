@@ -55,11 +55,9 @@ import json
 from dataclasses import dataclass
 from typing import Annotated, Any
 
-
-from ..config.schema import ConfigError, FieldError, Gt, Issue, NonEmpty, SourceMap, convert, parse
 from ..config.limits import (MAX_MISSION_NESTING, MAX_MISSION_NODES, MAX_MISSION_STEPS, MAX_MISSION_TEXT_BYTES, XM,
                              ZM, Deg, Name)
-from ..config.schema import MaxLen
+from ..config.schema import ConfigError, FieldError, Gt, Issue, MaxLen, NonEmpty, SourceMap, convert, parse
 from ..config.yaml_source import load_yaml_text, prescan
 from .spec import (MAX_CLIMB_SPEED_M_S, MAX_CRUISE_SPEED_M_S, MAX_DESCENT_SPEED_M_S, MissionSpec,
                    MissionStep, Wait, Waypoint)
@@ -183,9 +181,6 @@ def _no_duplicates(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
             raise _DuplicateKey(k)
         out[k] = v
     return out
-
-
-MAX_NESTING = MAX_MISSION_NESTING
 
 
 def _prescan(text: str, source: str) -> None:

@@ -201,6 +201,16 @@ class SceneLayout:
                 best_z, best_id = float(top[k]), int(cyls[k, 5])
         return best_z, best_id
 
+    def contains_xy(self, x_m: float, y_m: float) -> bool:
+        """Whether ENU (x, y) [m] lies within the world's extent (on its ground)."""
+        lo, hi = self.extent_min_m, self.extent_max_m
+        return bool(lo[0] <= x_m <= hi[0] and lo[1] <= y_m <= hi[1])
+
+    def extent_text(self) -> str:
+        """The extent for messages: ``x in [lo, hi] m, y in [lo, hi] m``."""
+        lo, hi = self.extent_min_m, self.extent_max_m
+        return f"x in [{lo[0]:g}, {hi[0]:g}] m, y in [{lo[1]:g}, {hi[1]:g}] m"
+
     def surface_height_m(self, x_m: float, y_m: float) -> float:
         """Return the top z [m] of the highest box/cylinder footprint covering (x, y); 0.0 for ground."""
         return self.support_at(x_m, y_m)[0]
