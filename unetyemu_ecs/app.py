@@ -27,6 +27,7 @@ from .physics.static_scene import build_static_scene
 from .plugins import Registry
 from .sensors.base import SensorSpec
 from .sensors.tf import TransformSystem
+from .systems.blackboard import declare_shared_arrays
 from .systems.car_state import DriveMode
 from .systems.commands import InboxSystem, UnclaimedCommandSystem
 from .systems.impacts import ImpactMonitorSystem
@@ -123,6 +124,7 @@ class Simulation:
         self.seed = spec.seed
         self.rng = np.random.default_rng(spec.seed)
         self.fleet = FleetState()
+        declare_shared_arrays(self.fleet)
         self.step_count = 0
         self.out_dir = Path(out_dir) if out_dir is not None else None
         self._stop_requested = False

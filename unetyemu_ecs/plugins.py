@@ -11,6 +11,9 @@ Three entry-point groups (docs/architecture.md §2):
     :class:`SystemPlugin` (a world-wide system and its configuration dataclass).
 ``unetyemu_ecs.sensors``
     name = the world-file key under ``components``; object = a :class:`SensorPlugin`.
+``unetyemu_ecs.controllers``
+    name = the controller's name, chosen per vehicle and layer under ``controller:``
+    (``controller: {attitude: px4_rate}``); object = a :class:`ControllerPlugin`.
 
 Built-in parts are declared in this project's own ``pyproject.toml`` and found the same way as
 third-party ones. A plugin that fails to import is not fatal: the registry records why, ``unetyemu
@@ -20,17 +23,19 @@ plugins`` shows it, and a world file that uses it gets that reason as its error.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from importlib.metadata import EntryPoint, entry_points
 from typing import Any
 
+from .control.layers import LAYERS_OF_KIND, Layer
 from .phases import Phase
 
 GROUP_COMPONENTS = "unetyemu_ecs.components"
 GROUP_SYSTEMS = "unetyemu_ecs.systems"
 GROUP_SENSORS = "unetyemu_ecs.sensors"
-GROUPS = (GROUP_COMPONENTS, GROUP_SYSTEMS, GROUP_SENSORS)
+GROUP_CONTROLLERS = "unetyemu_ecs.controllers"
+GROUPS = (GROUP_COMPONENTS, GROUP_SYSTEMS, GROUP_SENSORS, GROUP_CONTROLLERS)
 
 ALL_KINDS = frozenset({"quadrotor", "car", "package"})
 
@@ -103,7 +108,45 @@ class SensorPlugin:
         return (self.system,)
 
 
-_EXPECTED = {GROUP_COMPONENTS: ComponentPlugin, GROUP_SYSTEMS: SystemPlugin, GROUP_SENSORS: SensorPlugin}
+@dataclass(frozen=True)
+class ControllerPlugin:
+    """A controller for one layer of a vehicle (see :mod:`unetyemu_ecs.control.layers`).
+
+    ``law(setpoint, state, airframe, params, memory, dt_s) -> (command, new_memory)`` is a pure,
+    vectorised function over the N vehicles that use this controller; the types of its arguments
+    and command are the layer's (``INPUT_OF_LAYER`` / ``OUTPUT_OF_LAYER``). ``params`` is a frozen
+    dataclass: the world-file schema of ``controller.<layer>.params`` (with ``Annotated`` ranges)
+    and, one instance per vehicle, the ECS component that puts the vehicle in this controller's
+    rows; the law receives it with every field stacked into an (N,) array, so fields must be
+    numbers. ``memory`` declares the law's per-vehicle state: name -> (tail shape, initial value);
+    it lives in the fleet arrays as ``ctl_<params class name>_<name>`` and is reset to the initial
+    value while the vehicle is disarmed or parked.
+    """
+
+    layer: Layer
+    params: type
+    law: Callable[..., tuple[Any, dict[str, Any]]]
+    memory: Mapping[str, tuple[tuple[int, ...], float]] = field(default_factory=dict)
+    summary: str = ""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "layer", Layer(self.layer))
+        if not dataclasses.is_dataclass(self.params):
+            raise TypeError(f"controller params {self.params!r} must be a dataclass")
+        if not callable(self.law):
+            raise TypeError(f"controller law {self.law!r} must be callable")
+        for name, spec in self.memory.items():
+            if not (isinstance(name, str) and name.isidentifier() and isinstance(spec, tuple) and len(spec) == 2):
+                raise TypeError(f"controller memory {name!r}: expected name -> (tail shape, initial value)")
+
+    @property
+    def applies_to(self) -> frozenset[str]:
+        """The vehicle kinds that have this controller's layer."""
+        return frozenset(k for k, layers in LAYERS_OF_KIND.items() if self.layer in layers)
+
+
+_EXPECTED = {GROUP_COMPONENTS: ComponentPlugin, GROUP_SYSTEMS: SystemPlugin, GROUP_SENSORS: SensorPlugin,
+             GROUP_CONTROLLERS: ControllerPlugin}
 
 
 @dataclass(frozen=True)
@@ -112,7 +155,7 @@ class PluginEntry:
 
     key: str
     group: str
-    spec: ComponentPlugin | SystemPlugin | SensorPlugin
+    spec: ComponentPlugin | SystemPlugin | SensorPlugin | ControllerPlugin
     provider: str
 
 
@@ -149,7 +192,12 @@ class Registry:
         if not isinstance(spec, _EXPECTED[group]):
             raise TypeError(f"entry point {key!r} in {group} must provide a {_EXPECTED[group].__name__}, "
                             f"got {type(spec).__name__}")
-        if group != GROUP_SYSTEMS and key in self.component_keys() and key not in self.entries[group]:
+        if group == GROUP_CONTROLLERS:
+            for other in self.entries[group].values():
+                if other.spec.params is spec.params and other.key != key:
+                    raise ValueError(f"controllers {other.key!r} and {key!r} share the params class "
+                                     f"{spec.params.__name__}: each controller needs its own")
+        if group in (GROUP_COMPONENTS, GROUP_SENSORS) and key in self.component_keys() and key not in self.entries[group]:
             other = self.component_entry(key)
             raise ValueError(f"component key {key!r} is provided twice ({other.provider} and {provider})")
         if key in self.entries[group]:
@@ -174,6 +222,18 @@ class Registry:
         if key in self.entries[GROUP_SYSTEMS]:
             return self.entries[GROUP_SYSTEMS][key]
         raise KeyError(self._unknown(key, [GROUP_SYSTEMS], sorted(self.entries[GROUP_SYSTEMS])))
+
+    def controller_entry(self, key: str, layer: Layer | str | None = None) -> PluginEntry:
+        """The controller registered as ``key`` (for ``layer``, if given); ``KeyError`` with the choices otherwise."""
+        entries = self.entries[GROUP_CONTROLLERS]
+        fits = sorted(k for k, e in entries.items() if layer is None or e.spec.layer == layer)
+        if key in entries and (layer is None or entries[key].spec.layer == layer):
+            return entries[key]
+        if key in entries:
+            raise KeyError(f"controller {key!r} is a {entries[key].spec.layer} controller, not a {layer} one "
+                           f"({layer} controllers: {', '.join(fits) or 'none installed'})")
+        message = self._unknown(key, [GROUP_CONTROLLERS], fits)
+        raise KeyError(message.replace("unknown key", f"unknown {layer or ''} controller".replace("  ", " ")))
 
     def _unknown(self, key: str, groups: Iterable[str], available: list[str]) -> str:
         for group in groups:
