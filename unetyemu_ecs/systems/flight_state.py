@@ -97,6 +97,7 @@ FLIGHT_ARRAYS: dict[str, tuple[tuple[int, ...], type, float]] = {
     "charge_power_w": ((), np.float64, 0.0),
     "low_battery": ((), np.bool_, False),
     "payload_kg": ((), np.float64, 0.0),
+    "payload_entity": ((), np.int64, -1),             # esper entity of the package carried (-1: none); PayloadSystem
     "payload_request": ((), np.int8, 0),
     "payload_result": ((), np.int8, 0),
     "mission_step": ((), np.int64, -1),               # index of the running mission step, -1 none
@@ -108,6 +109,7 @@ def declare_flight_arrays(fleet: FleetState) -> None:
     for name, (tail, dtype, fill) in FLIGHT_ARRAYS.items():
         fleet.declare(name, tail, dtype, fill)
     fleet.declare("route", (), object, None)
+    fleet.declare("payload_package", (), object, None)     # name of the package a pickup asks for (None: nearest)
 
 
 def set_route(fleet: FleetState, row: int, route: Route | None) -> None:
