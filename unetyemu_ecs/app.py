@@ -12,16 +12,13 @@ from typing import Any
 import esper
 import numpy as np
 
-from .components.body import Appearance, FleetSlot, Identity, RigidBody
-from .components.car import CarBody, CarDynamics
+from .command_checks import (check_armed, check_cmd_vel, check_drive, check_drive_route, check_set_target,
+                             check_teleop, is_real)
 from .components.mission import MissionRuntime
 from .config.schema import ConfigError, Issue
 from .config.world_file import EntityDefinition, WorldDefinition, load_world
 from .fleet import FleetState
-from .frames import quat_xyzw_from_euler_rpy
 from .geodesy import GeodeticOrigin
-from .physics.bodies import create_box_body
-from .physics.car_body import CarGeometry, create_car_body
 from .physics.client import PhysicsClient
 from .physics.static_scene import build_static_scene
 from .plugins import Registry
@@ -35,13 +32,11 @@ from .systems.outputs import TrajectoryLogSystem
 from .systems.physics import PhysicsStepSystem
 from .systems.state import StateReadbackSystem
 from .transport.ros2.bridge import resolve_backend
-from .config.limits import MAX_DURATION_S, MAX_Z_M
+from .config.limits import MAX_DURATION_S
 from .mission import MissionSpec, mission_reference_issues, parse_mission
-from .mission.spec import MAX_CRUISE_SPEED_M_S
 from .transport.bus import Arm, CmdVel, Drive, DriveRoute, Inbox, LoadMission, SetTarget, Teleop
+from .vehicles.factory import spawn_entity
 from .world import EcsWorld, SimServices, StepContext
-
-PACKAGE_RGBA = (0.80, 0.60, 0.30, 1.0)
 
 
 class UnknownEntityError(ValueError, KeyError):
@@ -79,24 +74,6 @@ class RunStats:
 
 
 ProgressFn = Callable[[float, float, float], None]   # (sim_time_s, end_time_s, wall_elapsed_s)
-
-
-MAX_YAW_RATE_RAD_S = 2 * math.pi  # a turn a second: beyond any drone's or car's yaw-rate limit
-MAX_LAPS = 10_000                # laps of a looping car route (0 = forever)
-
-
-def _hold(what: str, hold_s: float | None) -> float | None:
-    """Check a command's hold time [s]: None (held until the next command) or a number in (0, 3600]."""
-    if hold_s is None:
-        return None
-    if not (_is_real(hold_s) and 0.0 < hold_s <= 3600.0):
-        raise ValueError(f"{what}: hold_s must be None or a number of seconds in (0, 3600], got {hold_s!r}")
-    return float(hold_s)
-
-
-def _is_real(v: object) -> bool:
-    """A real number (Python or numpy), not a bool."""
-    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
 
 
 class Simulation:
@@ -146,7 +123,7 @@ class Simulation:
             self.static_body_ids = build_static_scene(self.physics.id, world.layout)
             with self.ecs.active():
                 for ent in world.entities:
-                    self._spawn(ent)
+                    self._entities[ent.name] = spawn_entity(self.physics, self.fleet, ent)
             self._add_systems(world)
             self.physics.finish_loading()
             with self.ecs.active():
@@ -165,43 +142,6 @@ class Simulation:
         return cls(load_world(path, registry=registry, seed=seed), **kwargs)
 
     # -- building ----------------------------------------------------------------------------
-    def _spawn(self, ent: EntityDefinition) -> None:
-        assert self.physics is not None
-        quat = np.asarray(quat_xyzw_from_euler_rpy(0.0, 0.0, ent.yaw_rad)).ravel()
-        mass = float(ent.params["mass_kg"])
-        car_joints = None
-        rgba = tuple(float(c) for c in (PACKAGE_RGBA if ent.kind == "package" else ent.params["rgba"]))
-        if ent.kind == "package":
-            half = np.asarray(ent.params["size_m"], dtype=float) / 2.0
-            body = create_box_body(self.physics.id, half, mass, ent.pos_enu_m, quat, rgba)
-        elif ent.kind == "car":
-            half = np.asarray(ent.params["body_half_extents_m"], dtype=float)
-            dyn: CarDynamics = ent.components["car_dynamics"]
-            clearance = float(ent.params["ground_clearance_m"])
-            geometry = CarGeometry(
-                half_extents_m=tuple(half), mass_kg=mass, wheelbase_m=dyn.wheelbase_m, track_m=dyn.track_m,
-                wheel_radius_m=dyn.wheel_radius_m, wheel_width_m=dyn.wheel_width_m, wheel_mass_kg=dyn.wheel_mass_kg,
-                wheel_z_m=dyn.wheel_radius_m - clearance - half[2], max_steer_rad=math.radians(dyn.max_steer_deg),
-                suspension_travel_m=dyn.suspension_travel_m, rgba=rgba)
-            body, car_joints = create_car_body(self.physics.id, geometry, ent.pos_enu_m, quat, dyn.tyre_friction)
-        else:
-            half = np.asarray(ent.params["body_half_extents_m"], dtype=float)
-            body = create_box_body(self.physics.id, half, mass, ent.pos_enu_m, quat, rgba)
-        eid = esper.create_entity()
-        row = self.fleet.allocate(eid, body)
-        esper.add_component(eid, Identity(name=ent.name, kind=ent.kind, preset=ent.preset, index=ent.index))
-        esper.add_component(eid, FleetSlot(row=row))
-        esper.add_component(eid, RigidBody(body_id=body, mass_kg=mass, half_extents_m=half))
-        esper.add_component(eid, Appearance(rgba=rgba))
-        if car_joints is not None:
-            esper.add_component(eid, CarBody(joints=car_joints))
-        for key, comp in ent.components.items():
-            if key == "mission":
-                esper.add_component(eid, MissionRuntime(spec=comp))
-            else:
-                esper.add_component(eid, comp)
-        self._entities[ent.name] = eid
-
     def _add_systems(self, world: WorldDefinition) -> None:
         self._state = StateReadbackSystem()
         systems: list[Any] = [InboxSystem(), UnclaimedCommandSystem(), PhysicsStepSystem(), self._state,
@@ -300,7 +240,7 @@ class Simulation:
         if (until is None) == (duration is None):
             raise ValueError("give exactly one of until= or duration=")
         given = until if until is not None else duration
-        if not _is_real(given) or not math.isfinite(given):
+        if not is_real(given) or not math.isfinite(given):
             raise ValueError(f"run(): {'until' if until is not None else 'duration'} must be a finite number of "
                              f"seconds, got {given!r}")
         if duration is not None and duration <= 0:
@@ -311,7 +251,7 @@ class Simulation:
         if end_s - self.sim_time_s > MAX_DURATION_S:
             raise ValueError(f"run(): at most {MAX_DURATION_S:g} s (a week) of sim time per call, got "
                              f"{end_s - self.sim_time_s:g} s")
-        if rate is not None and not (_is_real(rate) and math.isfinite(rate) and rate > 0):
+        if rate is not None and not (is_real(rate) and math.isfinite(rate) and rate > 0):
             raise ValueError(f"rate must be a finite number > 0 or None (as fast as possible), got {rate!r}")
         end_step = int(round(end_s / self.dt_s))
         start_step = self.step_count
@@ -366,24 +306,8 @@ class Simulation:
         kind = self.definition_of(name).kind
         if kind == "package":
             raise ValueError(f"{name!r} is a package, not a vehicle")
-        values = [x, y, z, *(v for v in (yaw_deg, speed) if v is not None)]
-        if not all(_is_real(v) and math.isfinite(v) for v in values):
-            raise ValueError(f"set_target({name!r}): values must be finite numbers, got {values}")
-        if speed is not None and not 0 < speed <= MAX_CRUISE_SPEED_M_S:
-            raise ValueError(f"set_target({name!r}): speed must be in (0, {MAX_CRUISE_SPEED_M_S:g}] m/s, got {speed}")
-        self._check_in_world(f"set_target({name!r})", [(x, y)])
-        if kind == "quadrotor" and not 0.0 <= z <= MAX_Z_M:
-            raise ValueError(f"set_target({name!r}): z must be in [0, {MAX_Z_M:g}] m (ENU height above "
-                             f"the ground plane), got {z}")
-        yaw = None if yaw_deg is None else math.radians(yaw_deg)
-        self.inbox.put(SetTarget(name, (float(x), float(y), float(z)), yaw, None if speed is None else float(speed)))
-
-    def _check_in_world(self, what: str, points_xy: list[tuple[float, float]]) -> None:
-        """ENU (x, y) points [m] must lie on the world's ground (its extent), where there is something to fly over."""
-        for x, y in points_xy:
-            if not self.layout.contains_xy(x, y):
-                raise ValueError(f"{what}: ({x:g}, {y:g}) is outside the world, which spans "
-                                 f"{self.layout.extent_text()} (ENU)")
+        pos_enu_m, yaw_rad, speed_m_s = check_set_target(name, kind, self.layout, x, y, z, yaw_deg, speed)
+        self.inbox.put(SetTarget(name, pos_enu_m, yaw_rad, speed_m_s))
 
     def command_timeout_s(self, name: str) -> float:
         """How long a streamed teleop/cmd_vel for vehicle ``name`` holds without a newer one [s] (0 = forever);
@@ -421,19 +345,14 @@ class Simulation:
         :meth:`command_timeout_s`).
         """
         self._drone(name)
-        stick = (throttle, pitch, roll, yaw)
-        if not all(_is_real(v) and math.isfinite(v) and -1.0 <= v <= 1.0 for v in stick):
-            raise ValueError(f"teleop({name!r}): sticks must be finite numbers in [-1, 1], got {stick}")
-        self.inbox.put(Teleop(name, tuple(float(v) for v in stick), _hold(f"teleop({name!r})", hold_s)))
+        self.inbox.put(Teleop(name, *check_teleop(name, throttle, pitch, roll, yaw, hold_s)))
 
     def arm(self, name: str, armed: bool = True) -> None:
         """Arm (hold position in AUTO mode) or disarm (motors off) drone ``name``; for a car, release
         the parking brake and hold still under speed control, or park it (brakes on)."""
         if self.definition_of(name).kind == "package":
             raise ValueError(f"{name!r} is a package, not a vehicle")
-        if not isinstance(armed, (bool, np.bool_)):
-            raise ValueError(f"arm({name!r}): armed must be True or False, got {armed!r}")
-        self.inbox.put(Arm(name, bool(armed)))
+        self.inbox.put(Arm(name, check_armed(name, armed)))
 
     def drive(self, name: str, throttle: float, brake: float, steering: float, *,
               hold_s: float | None = None) -> None:
@@ -441,12 +360,7 @@ class Simulation:
         in [0, 1], ``steering`` in [-1, 1] (+1 = full left; the limit shrinks with speed). Held until
         the next command, or for ``hold_s`` seconds of sim time (then the car brakes to a stop)."""
         self._car(name)
-        cmd = (throttle, brake, steering)
-        if not (all(_is_real(v) and math.isfinite(v) for v in cmd)
-                and -1 <= throttle <= 1 and 0 <= brake <= 1 and -1 <= steering <= 1):
-            raise ValueError(f"drive({name!r}): need throttle in [-1, 1], brake in [0, 1], steering in [-1, 1], "
-                             f"got {cmd}")
-        self.inbox.put(Drive(name, float(throttle), float(brake), float(steering), _hold(f"drive({name!r})", hold_s)))
+        self.inbox.put(Drive(name, *check_drive(name, throttle, brake, steering, hold_s)))
 
     def cmd_vel(self, name: str, forward_m_s: float, yaw_rate_rad_s: float, left_m_s: float = 0.0,
                 up_m_s: float = 0.0, *, hold_s: float | None = None) -> None:
@@ -462,37 +376,14 @@ class Simulation:
         kind = self.definition_of(name).kind
         if kind not in ("quadrotor", "car"):
             raise ValueError(f"cmd_vel({name!r}): {name!r} is a {kind}, not a vehicle")
-        values = (forward_m_s, yaw_rate_rad_s, left_m_s, up_m_s)
-        if not all(_is_real(v) and math.isfinite(v) for v in values):
-            raise ValueError(f"cmd_vel({name!r}): values must be finite numbers, got {values}")
-        if max(abs(forward_m_s), abs(left_m_s), abs(up_m_s)) > MAX_CRUISE_SPEED_M_S \
-                or abs(yaw_rate_rad_s) > MAX_YAW_RATE_RAD_S:
-            raise ValueError(f"cmd_vel({name!r}): speeds must be within +-{MAX_CRUISE_SPEED_M_S:g} m/s and the yaw "
-                             f"rate within +-{MAX_YAW_RATE_RAD_S:g} rad/s, got {values}")
-        self.inbox.put(CmdVel(name, float(forward_m_s), float(yaw_rate_rad_s), float(left_m_s), float(up_m_s),
-                              _hold(f"cmd_vel({name!r})", hold_s)))
+        self.inbox.put(CmdVel(name, *check_cmd_vel(name, forward_m_s, yaw_rate_rad_s, left_m_s, up_m_s, hold_s)))
 
     def drive_route(self, name: str, waypoints: list[tuple[float, float]], speed: float | None = None,
                     loop: bool = False, laps: int = 0) -> None:
         """Drive car ``name`` through ENU ``(x, y)`` waypoints [m] in order at ``speed`` [m/s] (slower
         in corners), stopping at the last; with ``loop`` go round ``laps`` times (0 = forever)."""
         self._car(name)
-        try:
-            wp = tuple((float(x), float(y)) for x, y in waypoints)
-        except (TypeError, ValueError):
-            raise ValueError(f"drive_route({name!r}): waypoints must be (x, y) pairs of numbers") from None
-        if not wp or not all(math.isfinite(v) for xy in wp for v in xy):
-            raise ValueError(f"drive_route({name!r}): need at least one finite (x, y) waypoint")
-        self._check_in_world(f"drive_route({name!r})", list(wp))
-        if speed is not None and not (math.isfinite(speed) and speed > 0):
-            raise ValueError(f"drive_route({name!r}): speed must be a finite number > 0, got {speed}")
-        if loop and len(wp) < 3:
-            raise ValueError(f"drive_route({name!r}): a loop needs at least 3 waypoints, got {len(wp)}")
-        if not isinstance(laps, (int, np.integer)) or isinstance(laps, bool) or not 0 <= laps <= MAX_LAPS \
-                or (laps and not loop):
-            raise ValueError(f"drive_route({name!r}): laps must be an integer in [0, {MAX_LAPS}] and needs loop=True, "
-                             f"got {laps!r}")
-        self.inbox.put(DriveRoute(name, wp, None if speed is None else float(speed), bool(loop), int(laps)))
+        self.inbox.put(DriveRoute(name, *check_drive_route(name, self.layout, waypoints, speed, loop, laps)))
 
     def mission_status(self, name: str) -> dict[str, Any] | None:
         """Status of the drone's mission (step, step type, state, reason), or None without one."""

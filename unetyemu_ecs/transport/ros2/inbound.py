@@ -6,15 +6,17 @@ roll, yaw]``, car ``[throttle, brake, steering]``), ``/<v>/cmd_vel`` (geometry_m
 frame: drones ``linear.x/y/z`` and ``angular.z``, cars ``linear.x`` and ``angular.z``). Each message
 becomes one call of the simulation's command API, which validates it and queues it for the loop
 (thread-safe); anything wrong (bad JSON, wrong array length, NaN/inf, out of range) raises
-``ValueError`` with the reason.
+``ValueError`` with the reason. The command API checks every range with
+:mod:`unetyemu_ecs.command_checks` (shared by every transport); this module checks only what is
+ROS-specific: array lengths, finite message fields, a target's mandatory speed.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
+from ...command_checks import finite_floats
 from ...config.schema import ConfigError
 
 COMMAND_TOPICS = {"mission": "std_msgs/msg/String", "target": "std_msgs/msg/Float32MultiArray",
@@ -28,13 +30,6 @@ class RejectedSample:
     with ``reason``, so it is reported like any bad command."""
 
     reason: str
-
-
-def _finite(values: list[float], what: str) -> list[float]:
-    out = [float(v) for v in values]
-    if not all(math.isfinite(v) for v in out):
-        raise ValueError(f"{what} must be finite numbers, got {out}")
-    return out
 
 
 def apply_command(sim: Any, vehicle: str, kind: str, topic_kind: str, msg: Any,
@@ -56,7 +51,7 @@ def apply_command(sim: Any, vehicle: str, kind: str, topic_kind: str, msg: Any,
             values = list(msg.data)
             if len(values) != 5:
                 raise ValueError(f"target needs [x, y, z, yaw_deg, speed] (5 values), got {len(values)}")
-            x, y, z, yaw_deg, speed = _finite(values, "target values")
+            x, y, z, yaw_deg, speed = finite_floats("target values", values)
             if speed <= 0.0:
                 raise ValueError(f"target speed must be > 0, got {speed}")
             sim.set_target(vehicle, x, y, z, yaw_deg=yaw_deg if kind == "quadrotor" else None, speed=speed)
@@ -71,8 +66,8 @@ def apply_command(sim: Any, vehicle: str, kind: str, topic_kind: str, msg: Any,
                     raise ValueError(f"car teleop needs [throttle, brake, steering] (3 values), got {len(values)}")
                 sim.drive(vehicle, *values, hold_s=hold_s)
         elif topic_kind == "cmd_vel":
-            lin = _finite([msg.linear.x, msg.linear.y, msg.linear.z], "cmd_vel linear")
-            ang = _finite([msg.angular.x, msg.angular.y, msg.angular.z], "cmd_vel angular")
+            lin = finite_floats("cmd_vel linear", [msg.linear.x, msg.linear.y, msg.linear.z])
+            ang = finite_floats("cmd_vel angular", [msg.angular.x, msg.angular.y, msg.angular.z])
             if kind == "quadrotor":
                 sim.cmd_vel(vehicle, lin[0], ang[2], left_m_s=lin[1], up_m_s=lin[2], hold_s=hold_s)
             else:

@@ -1,0 +1,174 @@
+"""The physical range of every value a command carries, checked in one place for every transport.
+
+Each ``check_*`` function takes a command's raw values as a caller hands them over (Python API,
+ROS 2 message, MAVLink message), and returns them as floats in our units and frames (SI, ENU, yaw
+counter-clockwise from East) or raises ``ValueError`` naming the command, the vehicle, the field,
+its range and the value received. Nothing here looks up a vehicle or touches the simulation: the
+caller checks that the vehicle exists and is of the right kind, then queues the checked values.
+
+Ranges and why (frames: docs/architecture.md §3; the ROS 2 command topics: §6):
+
+- ``hold_s`` (teleop, drive, cmd_vel): ``None`` (held until the next command) or (0, 3600] s. The
+  vehicle holds the command that long, then a drone hovers and a car brakes; a stream's timeout is
+  a fraction of a second, an hour is already far beyond any scripted manoeuvre.
+- ``set_target``: x and y inside the world's extent (``SceneLayout.extent_min_m/extent_max_m``):
+  beyond it there is no ground to land or drive on. A drone's z in [0, ``MAX_Z_M``] m, height above
+  the ground plane (10 km is above every drone's service ceiling); a car ignores z and yaw. ``speed``
+  in (0, ``MAX_CRUISE_SPEED_M_S``] m/s, the same cap as a mission's cruise speed (§5).
+  ``yaw_deg`` any finite angle [deg, ENU].
+- ``teleop`` (drone sticks): throttle, pitch, roll, yaw normalised to [-1, 1].
+- ``drive`` (car pedals and wheel): throttle [-1, 1] (negative = reverse), brake [0, 1], steering
+  [-1, 1] (+1 = full left).
+- ``cmd_vel`` (body frame FLU): forward, left and up speeds within +-``MAX_CRUISE_SPEED_M_S`` m/s,
+  yaw rate within +-``MAX_YAW_RATE_RAD_S`` rad/s (a turn a second). The controllers clamp further
+  to each vehicle's own limits.
+- ``drive_route``: at least one (x, y) waypoint [m, ENU], each inside the world; a loop needs at
+  least 3; ``speed`` finite and > 0 m/s; ``laps`` an integer in [0, ``MAX_LAPS``] (0 = forever),
+  only with ``loop``.
+- ``arm``: ``True`` or ``False`` (numbers and strings are refused: ``"False"`` is truthy).
+
+Booleans are not numbers here (``True`` is not a speed), numpy scalars are.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+
+import numpy as np
+
+from .config.limits import MAX_Z_M
+from .mission.spec import MAX_CRUISE_SPEED_M_S
+from .scene.primitives import SceneLayout
+
+MAX_HOLD_S = 3600.0               # longest hold of a teleop/drive/cmd_vel command [s]
+MAX_YAW_RATE_RAD_S = 2 * math.pi  # a turn a second: beyond any drone's or car's yaw-rate limit
+# Laps of a looping car route (0 = forever): 10 000 laps of a 100 m loop at 30 m/s take 9 h of sim
+# time; a larger number is a typo for 0.
+MAX_LAPS = 10_000
+
+
+def is_real(v: object) -> bool:
+    """A real number (Python or numpy), not a bool."""
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+
+
+def finite_floats(what: str, values: Iterable[float]) -> list[float]:
+    """``values`` as floats, all finite, else ``ValueError("<what> must be finite numbers, got [...]")``."""
+    out = [float(v) for v in values]
+    if not all(math.isfinite(v) for v in out):
+        raise ValueError(f"{what} must be finite numbers, got {out}")
+    return out
+
+
+def check_hold_s(what: str, hold_s: float | None) -> float | None:
+    """A command's hold time [s]: None (held until the next command) or a number in (0, MAX_HOLD_S]."""
+    if hold_s is None:
+        return None
+    if not (is_real(hold_s) and 0.0 < hold_s <= MAX_HOLD_S):
+        raise ValueError(f"{what}: hold_s must be None or a number of seconds in (0, {MAX_HOLD_S:g}], "
+                         f"got {hold_s!r}")
+    return float(hold_s)
+
+
+def check_in_world(what: str, layout: SceneLayout, points_xy: Iterable[tuple[float, float]]) -> None:
+    """ENU (x, y) points [m] must lie on the world's ground (its extent), where there is something to fly over."""
+    for x, y in points_xy:
+        if not layout.contains_xy(x, y):
+            raise ValueError(f"{what}: ({x:g}, {y:g}) is outside the world, which spans "
+                             f"{layout.extent_text()} (ENU)")
+
+
+def check_set_target(vehicle: str, kind: str, layout: SceneLayout, x: float, y: float, z: float = 0.0,
+                     yaw_deg: float | None = None, speed: float | None = None
+                     ) -> tuple[tuple[float, float, float], float | None, float | None]:
+    """Check a go-to command of ``vehicle`` (``kind`` ``quadrotor`` or ``car``).
+
+    Returns ``(pos_enu_m, yaw_rad, speed_m_s)``: the target (x, y, z) [m, ENU], the yaw [rad, ENU]
+    or None (keep), the speed [m/s] or None (the vehicle's default).
+    """
+    what = f"set_target({vehicle!r})"
+    values = [x, y, z, *(v for v in (yaw_deg, speed) if v is not None)]
+    if not all(is_real(v) and math.isfinite(v) for v in values):
+        raise ValueError(f"{what}: values must be finite numbers, got {values}")
+    if speed is not None and not 0 < speed <= MAX_CRUISE_SPEED_M_S:
+        raise ValueError(f"{what}: speed must be in (0, {MAX_CRUISE_SPEED_M_S:g}] m/s, got {speed}")
+    check_in_world(what, layout, [(x, y)])
+    if kind == "quadrotor" and not 0.0 <= z <= MAX_Z_M:
+        raise ValueError(f"{what}: z must be in [0, {MAX_Z_M:g}] m (ENU height above "
+                         f"the ground plane), got {z}")
+    yaw_rad = None if yaw_deg is None else math.radians(yaw_deg)
+    return (float(x), float(y), float(z)), yaw_rad, None if speed is None else float(speed)
+
+
+def check_teleop(vehicle: str, throttle: float, pitch: float, roll: float, yaw: float,
+                 hold_s: float | None = None) -> tuple[tuple[float, float, float, float], float | None]:
+    """Check a drone's sticks (each in [-1, 1]) and hold time; return ``(sticks, hold_s)``."""
+    what = f"teleop({vehicle!r})"
+    stick = (throttle, pitch, roll, yaw)
+    if not all(is_real(v) and math.isfinite(v) and -1.0 <= v <= 1.0 for v in stick):
+        raise ValueError(f"{what}: sticks must be finite numbers in [-1, 1], got {stick}")
+    return (float(throttle), float(pitch), float(roll), float(yaw)), check_hold_s(what, hold_s)
+
+
+def check_armed(vehicle: str, armed: object) -> bool:
+    """Check an arm/disarm request: ``True`` or ``False`` (numpy bools too)."""
+    if not isinstance(armed, (bool, np.bool_)):
+        raise ValueError(f"arm({vehicle!r}): armed must be True or False, got {armed!r}")
+    return bool(armed)
+
+
+def check_drive(vehicle: str, throttle: float, brake: float, steering: float,
+                hold_s: float | None = None) -> tuple[float, float, float, float | None]:
+    """Check a car's manual controls; return ``(throttle, brake, steering, hold_s)``."""
+    what = f"drive({vehicle!r})"
+    cmd = (throttle, brake, steering)
+    if not (all(is_real(v) and math.isfinite(v) for v in cmd)
+            and -1 <= throttle <= 1 and 0 <= brake <= 1 and -1 <= steering <= 1):
+        raise ValueError(f"{what}: need throttle in [-1, 1], brake in [0, 1], steering in [-1, 1], got {cmd}")
+    return float(throttle), float(brake), float(steering), check_hold_s(what, hold_s)
+
+
+def check_cmd_vel(vehicle: str, forward_m_s: float, yaw_rate_rad_s: float, left_m_s: float = 0.0,
+                  up_m_s: float = 0.0, hold_s: float | None = None
+                  ) -> tuple[float, float, float, float, float | None]:
+    """Check a body-frame (FLU) velocity command; return ``(forward_m_s, yaw_rate_rad_s, left_m_s,
+    up_m_s, hold_s)``."""
+    what = f"cmd_vel({vehicle!r})"
+    values = (forward_m_s, yaw_rate_rad_s, left_m_s, up_m_s)
+    if not all(is_real(v) and math.isfinite(v) for v in values):
+        raise ValueError(f"{what}: values must be finite numbers, got {values}")
+    if max(abs(forward_m_s), abs(left_m_s), abs(up_m_s)) > MAX_CRUISE_SPEED_M_S \
+            or abs(yaw_rate_rad_s) > MAX_YAW_RATE_RAD_S:
+        raise ValueError(f"{what}: speeds must be within +-{MAX_CRUISE_SPEED_M_S:g} m/s and the yaw "
+                         f"rate within +-{MAX_YAW_RATE_RAD_S:g} rad/s, got {values}")
+    return (float(forward_m_s), float(yaw_rate_rad_s), float(left_m_s), float(up_m_s),
+            check_hold_s(what, hold_s))
+
+
+def check_drive_route(vehicle: str, layout: SceneLayout, waypoints: Sequence[tuple[float, float]],
+                      speed: float | None = None, loop: bool = False, laps: int = 0
+                      ) -> tuple[tuple[tuple[float, float], ...], float | None, bool, int]:
+    """Check a car route; return ``(waypoints_enu_m, speed_m_s, loop, laps)`` (waypoints as (x, y)
+    float pairs [m, ENU], speed None = the car's default)."""
+    what = f"drive_route({vehicle!r})"
+    try:
+        wp = tuple((float(x), float(y)) for x, y in waypoints)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what}: waypoints must be (x, y) pairs of numbers") from None
+    if not wp or not all(math.isfinite(v) for xy in wp for v in xy):
+        raise ValueError(f"{what}: need at least one finite (x, y) waypoint")
+    check_in_world(what, layout, wp)
+    if speed is not None and not (math.isfinite(speed) and speed > 0):
+        raise ValueError(f"{what}: speed must be a finite number > 0, got {speed}")
+    if loop and len(wp) < 3:
+        raise ValueError(f"{what}: a loop needs at least 3 waypoints, got {len(wp)}")
+    if not isinstance(laps, (int, np.integer)) or isinstance(laps, bool) or not 0 <= laps <= MAX_LAPS \
+            or (laps and not loop):
+        raise ValueError(f"{what}: laps must be an integer in [0, {MAX_LAPS}] and needs loop=True, got {laps!r}")
+    return wp, None if speed is None else float(speed), bool(loop), int(laps)
+
+
+__all__ = ["MAX_HOLD_S", "MAX_LAPS", "MAX_YAW_RATE_RAD_S", "check_armed", "check_cmd_vel", "check_drive",
+           "check_drive_route", "check_hold_s", "check_in_world", "check_set_target", "check_teleop",
+           "finite_floats", "is_real"]
