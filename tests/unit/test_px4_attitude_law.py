@@ -204,6 +204,18 @@ def test_roll_setpoint_asks_for_positive_roll_torque_and_climb_for_more_thrust()
     assert cmd.thrust_frac[0] > a.hover_thrust_frac[0]
 
 
+def test_roll_and_pitch_setpoints_are_relative_to_the_current_heading():
+    # GIVEN the same level drone facing east, north-east, west and south
+    yaws = np.array([0.0, 0.8, np.pi, -1.5])
+    n = yaws.size
+    state = dataclasses.replace(hover_state(n), quat_enu_flu_xyzw=quat_xyzw_from_euler_rpy(0.0, 0.0, yaws))
+    # WHEN each is asked for 10 deg roll and 5 deg pitch
+    cmd, _ = px4_attitude_law(setpoint(n, roll=np.deg2rad(10.0), pitch=np.deg2rad(5.0)), state,
+                              airframe_of(["medium"] * n), stack([Px4AttitudeParams()] * n), initial_memory(n), DT_S)
+    # THEN each gets the same body torques (the heading does not enter)
+    assert_allclose(cmd.torque_cmd, np.tile(cmd.torque_cmd[0], (n, 1)), atol=1e-12)
+
+
 # -- closed loop on the presets -----------------------------------------------------------------------------------
 @pytest.mark.parametrize("motor_tau_s", [0.0, 0.03])
 def test_ten_degree_roll_step_settles_within_five_percent_without_large_overshoot(motor_tau_s):
@@ -273,12 +285,13 @@ def test_rate_integrator_stays_within_its_limit_while_the_output_saturates():
 
 
 def test_rate_integrator_is_clamped_at_its_limit_when_the_output_is_not_saturated():
-    # GIVEN a roll-rate error too small to saturate the output, held for 20 s
+    # GIVEN a roll-rate error too small to saturate the output, held for 2 s (the integrator would
+    # reach 0.05 in 0.3 s unclamped)
     a = airframe_of(["small"])
-    params = stack([Px4AttitudeParams(rate_int_lim=0.05, rate_p_roll=0.0)])
+    params = stack([Px4AttitudeParams(rate_int_lim=0.05, rate_p_roll=0.0, rate_i_roll=100.0)])
     memory = initial_memory(1)
     state = dataclasses.replace(hover_state(1), rate_flu_rad_s=np.array([[-0.2, 0.0, 0.0]]))
-    for _ in range(4800):
+    for _ in range(480):
         cmd, memory = px4_attitude_law(setpoint(1), state, a, params, memory, DT_S)
     # THEN the integrator sits at its limit and so does the roll command
     assert_allclose(memory["rate_int_cmd"][0, 0], 0.05, atol=1e-15)
@@ -286,10 +299,10 @@ def test_rate_integrator_is_clamped_at_its_limit_when_the_output_is_not_saturate
 
 
 def test_vertical_integrator_does_not_wind_up_while_thrust_is_saturated():
-    # GIVEN a drone asked to climb at 8 m/s that does not move (thrust pinned at 1)
+    # GIVEN a drone asked to climb at 8 m/s that does not move (thrust pinned at 1) for 2 s
     a = airframe_of(["large"])
     memory = initial_memory(1)
-    for _ in range(2400):
+    for _ in range(480):
         cmd, memory = px4_attitude_law(setpoint(1, vz=8.0), hover_state(1), a, stack([Px4AttitudeParams()]),
                                        memory, DT_S)
     # THEN thrust is at full and the integrator has not grown
