@@ -26,6 +26,7 @@ from .sensors.base import SensorSpec
 from .sensors.tf import TransformSystem
 from .systems.blackboard import declare_shared_arrays
 from .systems.car_state import DriveMode
+from .systems.controllers import controller_system
 from .systems.commands import InboxSystem, UnclaimedCommandSystem
 from .systems.impacts import ImpactMonitorSystem
 from .systems.outputs import TrajectoryLogSystem
@@ -153,6 +154,12 @@ class Simulation:
                     if cls not in classes:
                         classes.append(cls)
         systems += [cls() for cls in classes]
+        controllers: list[str] = []
+        for ent in world.entities:
+            for name, _params in ent.controllers.values():
+                if name not in controllers:
+                    controllers.append(name)
+        systems += [controller_system(name, world.registry.controller_entry(name).spec) for name in controllers]
         for key, cfg in world.systems.items():
             systems.append(world.registry.system_entry(key).spec.system(cfg))
         if self.ros2_backend != "off":

@@ -5,11 +5,13 @@ from __future__ import annotations
 from .components.aero import AeroDrag
 from .components.car import CarDynamics, CarRoute
 from .components.flight import EnergyModel, GuidanceLimits, PayloadBay, QuadrotorMotors, TeleopScript
-from .control.attitude import StabilizerGains
-from .control.car import CarControllerGains
-from .control.position import GuidanceGains
+from .control.attitude import StabilizerGains, angle_rate_pd_law
+from .control.car import CarGuidanceParams, SpeedSteerGains, speed_pi_steer_law
+from .control.layers import Layer
+from .control.mixer import XQuadMixer, x_quad_priority_law
+from .control.position import GuidanceGains, cascade_pid_law
 from .mission import MissionSpec
-from .plugins import ComponentPlugin, SensorPlugin
+from .plugins import ComponentPlugin, ControllerPlugin, SensorPlugin
 from .sensors.battery import BatterySensor, BatterySystem
 from .sensors.camera import DepthCamera, DepthCameraSystem, RgbCamera, RgbCameraSystem
 from .sensors.gps import GpsSensor, GpsSystem
@@ -17,14 +19,13 @@ from .sensors.imu import ImuSensor, ImuSystem
 from .sensors.lidar import LidarSensor, LidarSystem
 from .sensors.odometry import OdometrySensor, OdometrySystem
 from .systems.actuate import AeroDragSystem
-from .systems.car import CarActuationSystem, CarCommandSystem, CarControllerSystem, CarGuidanceSystem
+from .systems.car import CarActuationSystem, CarCommandSystem, CarGuidanceSystem
 from .systems.commands import FlightCommandSystem
 from .systems.energy import EnergySystem
-from .systems.guidance import GuidanceSystem
+from .systems.guidance import RouteFollowingSystem
 from .systems.mission import EmergencyLandingSystem, MissionSystem
 from .systems.motors import MotorSystem
 from .systems.payload import PayloadSystem
-from .systems.stabilize import StabilizerSystem
 
 QUADROTOR = frozenset({"quadrotor"})
 CAR = frozenset({"car"})
@@ -34,21 +35,16 @@ AERO_DRAG = ComponentPlugin(
     summary="quadratic air drag per body axis, relative to the local wind")
 
 MOTORS = ComponentPlugin(
-    component=QuadrotorMotors,
-    systems=(FlightCommandSystem, MissionSystem, EmergencyLandingSystem, GuidanceSystem, StabilizerSystem,
-             MotorSystem, PayloadSystem, EnergySystem),
-    applies_to=QUADROTOR,
-    summary="four X-configured motors, thrust applied at each motor; brings the flight stack")
+    component=QuadrotorMotors, systems=(MotorSystem,), applies_to=QUADROTOR,
+    summary="four X-configured motors, thrust applied at each motor (after the mixer layer), optional lag")
 
-GUIDANCE = ComponentPlugin(component=GuidanceLimits, applies_to=QUADROTOR,
-                           summary="layer-3 limits and pure-pursuit parameters")
-STABILIZER = ComponentPlugin(component=StabilizerGains, applies_to=QUADROTOR,
-                             summary="layer-2 gains: vertical-speed PID, pitch/roll rate-PD, yaw-rate P")
-POSITION_CONTROLLER = ComponentPlugin(component=GuidanceGains, applies_to=QUADROTOR,
-                                      summary="layer-3 gains: position -> velocity -> acceleration")
-PAYLOAD = ComponentPlugin(component=PayloadBay, applies_to=QUADROTOR,
+GUIDANCE = ComponentPlugin(
+    component=GuidanceLimits, systems=(FlightCommandSystem, MissionSystem, EmergencyLandingSystem, RouteFollowingSystem),
+    applies_to=QUADROTOR,
+    summary="flight modes, commands, missions and route following (pure pursuit), with their limits")
+PAYLOAD = ComponentPlugin(component=PayloadBay, systems=(PayloadSystem,), applies_to=QUADROTOR,
                           summary="grab reach and maximum payload")
-ENERGY = ComponentPlugin(component=EnergyModel, applies_to=QUADROTOR,
+ENERGY = ComponentPlugin(component=EnergyModel, systems=(EnergySystem,), applies_to=QUADROTOR,
                          summary="actuator-disk power per motor and battery")
 MISSION = ComponentPlugin(component=MissionSpec, applies_to=QUADROTOR,
                           summary="mission started at t = 0 (steps: takeoff, cruise, land, pickup, deliver, recharge, idle)")
@@ -57,13 +53,27 @@ TELEOP_SCRIPT = ComponentPlugin(component=TeleopScript, applies_to=QUADROTOR,
 
 CAR_DYNAMICS = ComponentPlugin(
     component=CarDynamics,
-    systems=(CarCommandSystem, CarGuidanceSystem, CarControllerSystem, CarActuationSystem),
+    systems=(CarCommandSystem, CarGuidanceSystem, CarActuationSystem),
     applies_to=CAR,
     summary="chassis on four sprung wheels: rear-wheel drive, front steering, brakes; brings the car stack")
-CAR_CONTROLLER = ComponentPlugin(component=CarControllerGains, applies_to=CAR,
-                                 summary="speed PI, course control and route-following parameters")
+CAR_GUIDANCE = ComponentPlugin(component=CarGuidanceParams, applies_to=CAR,
+                               summary="route following: pure-pursuit look-ahead, corner speeds, arrival")
 CAR_ROUTE = ComponentPlugin(component=CarRoute, applies_to=CAR,
                             summary="route driven from t = 0: waypoints [{x, y}], speed_m_s, loop, laps")
+
+CASCADE_PID = ControllerPlugin(
+    layer=Layer.POSITION, params=GuidanceGains, law=cascade_pid_law, memory={"vel_int_m_s": ((2,), 0.0)},
+    summary="position P -> velocity PI -> tilt (the paper's layer 3), heading P")
+ANGLE_RATE_PD = ControllerPlugin(
+    layer=Layer.ATTITUDE, params=StabilizerGains, law=angle_rate_pd_law, memory={"vz_int_m_s": ((), 0.0)},
+    summary="vertical-speed PID, roll/pitch angle P with rate D, yaw-rate P (the paper's layer 2)")
+SPEED_PI_STEER = ControllerPlugin(
+    layer=Layer.DRIVE, params=SpeedSteerGains, law=speed_pi_steer_law,
+    memory={"speed_int": ((), 0.0), "engaged": ((), 0.0)},
+    summary="speed PI with rolling resistance fed forward, bumpless; route steering or yaw-rate steering")
+X_QUAD_PRIORITY = ControllerPlugin(
+    layer=Layer.MIXER, params=XQuadMixer, law=x_quad_priority_law,
+    summary="X-quad mixer, motors held in [0, F_max] with roll/pitch first, then collective, yaw last")
 
 IMU = SensorPlugin(component=ImuSensor, system=ImuSystem,
                    summary="sensor_msgs/Imu: body rates, specific force (+9.81 up at rest), orientation; noise, bias walk")

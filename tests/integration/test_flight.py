@@ -38,8 +38,11 @@ vehicles:
 """
 
 
-def drone(name: str, preset: str = "medium", pose: str = "{position_m: [0.0, 0.0, 0.3]}", components: str = "") -> str:
+def drone(name: str, preset: str = "medium", pose: str = "{position_m: [0.0, 0.0, 0.3]}", components: str = "",
+          controller: str = "") -> str:
     text = f"  - name: {name}\n    type: quadrotor\n    preset: {preset}\n    pose: {pose}\n"
+    if controller:
+        text += f"    controller: {controller}\n"
     if components:
         text += "    components:\n" + components
     return text
@@ -377,9 +380,9 @@ def test_several_pickups_and_deliveries_in_one_run():
 
 def test_a_mixed_fleet_with_its_own_gains_flies_to_separate_targets_at_once():
     # GIVEN three drones of different presets, one with softer guidance gains, all in automatic mode together
-    soft = "      position_controller: {gain_vel_p: 1.2, gain_pos_p: 0.6}\n"
+    soft = "{position: {name: cascade_pid, params: {gain_vel_p: 1.2, gain_pos_p: 0.6}}}"
     drones = (drone("s", "small", "{position_m: [0.0, 0.0, 0.3]}")
-              + drone("m", "medium", "{position_m: [5.0, 0.0, 0.3]}", components=soft)
+              + drone("m", "medium", "{position_m: [5.0, 0.0, 0.3]}", controller=soft)
               + drone("l", "large", "{position_m: [10.0, 0.0, 0.3]}"))
     targets = {"s": (-10.0, 15.0, 8.0), "m": (20.0, 15.0, 12.0), "l": (10.0, -15.0, 6.0)}
     with Simulation(load_world_text(flat_world(drones))) as sim:

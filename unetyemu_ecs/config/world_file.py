@@ -22,6 +22,7 @@ import numpy as np
 
 from ..mission.refs import mission_reference_issues
 from ..mission.spec import MissionSpec
+from ..control.layers import DEFAULT_CONTROLLER, LAYERS_OF_KIND
 from ..plugins import GROUP_SENSORS, Registry
 from ..scene.config import SceneConfig
 from ..sensors.base import SensorSpec
@@ -120,6 +121,10 @@ class VehicleSpec:
     # drone then hovers, the car brakes to a stop (0: held until the next command) [s, sim time];
     # 0.5 s as ros2_control's diff_drive_controller (cmd_vel_timeout) and PX4's offboard loss time
     command_timeout_s: Annotated[float, Ge(0.0), Le(60.0)] = 0.5
+    # the controller of each layer (position, attitude, mixer for a drone; drive for a car), by its
+    # registered name, optionally with parameters: `attitude: px4_attitude` or
+    # `attitude: {name: px4_attitude, params: {...}}`; layers not named keep the built-in controller
+    controller: dict[Name, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         known = presets_for(self.type)
@@ -152,6 +157,8 @@ class EntityDefinition:
     params: dict[str, Any]             # preset parameters (vehicles) or mass/size (packages)
     components: dict[str, Any]         # world-file key -> component instance
     ros2: bool = True                  # on the ROS 2 bridge (VehicleSpec.ros2); packages: unused
+    # layer -> (registered controller name, its parameters: the component that selects it)
+    controllers: dict[str, tuple[str, Any]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -398,6 +405,10 @@ def _resolve_entity(group: str, i: int, item: VehicleSpec | PackageSpec, layout:
     components: dict[str, Any] = {}
     blocks: dict[str, Any] = dict(component_tables(params))       # the preset's built-in components
     for key, block in item.components.items():                    # the world file's additions/overrides
+        if block is None and key in registry.component_keys():
+            issues.append(src.issue((group, i, "components", key), f"{key}: null is not a parameter block: give a "
+                                    "mapping of its parameters ({} keeps the defaults)"))
+            continue
         if key in blocks and isinstance(block, dict):
             blocks[key] = {**blocks[key], **block}
         else:
@@ -429,6 +440,8 @@ def _resolve_entity(group: str, i: int, item: VehicleSpec | PackageSpec, layout:
         if comp is not INVALID:
             components[key] = comp
 
+    controllers = (_resolve_controllers(kind, item.controller, (group, i, "controller"), registry, src, issues)
+                   if isinstance(item, VehicleSpec) else {})
     if len(issues) > n_before or pos is None:
         return None
     index = counts.get(kind, 0)
@@ -436,4 +449,48 @@ def _resolve_entity(group: str, i: int, item: VehicleSpec | PackageSpec, layout:
     on_ros2 = getattr(item, "ros2", True)
     if not on_ros2:                                  # a vehicle off ROS 2 takes its sensors with it
         components = {k: replace(c, ros2=False) if isinstance(c, SensorSpec) else c for k, c in components.items()}
-    return EntityDefinition(item.name, kind, preset_name, index, pos, float(yaw_rad), params, components, on_ros2)
+    return EntityDefinition(item.name, kind, preset_name, index, pos, float(yaw_rad), params, components, on_ros2,
+                            controllers)
+
+
+def _resolve_controllers(kind: str, chosen: dict[str, Any], path: Path, registry: Registry, src: SourceMap,
+                         issues: list[Issue]) -> dict[str, tuple[str, Any]]:
+    """Each layer of a ``kind`` vehicle -> (controller name, parameters), from its ``controller:`` block
+    (``layer: name`` or ``layer: {name: ..., params: {...}}``) and the built-in defaults."""
+    layers = LAYERS_OF_KIND.get(kind, ())
+    out: dict[str, tuple[str, Any]] = {}
+    for layer_key in chosen:
+        if layer_key not in layers:
+            issues.append(src.issue((*path, layer_key), f"a {kind} has no controller layer {layer_key!r} "
+                                                        f"(its layers: {', '.join(layers)})"))
+    for layer in layers:
+        lpath: Path = (*path, layer.value)
+        block = chosen.get(layer.value, DEFAULT_CONTROLLER[layer])
+        params_block: Any = {}
+        if isinstance(block, dict):
+            unknown = sorted(set(block) - {"name", "params"})
+            if unknown:
+                issues.append(src.issue((*lpath, unknown[0]), f"unknown key {unknown[0]!r} (a controller is "
+                                                              "{name: <controller>, params: {...}})"))
+                continue
+            name, params_block = block.get("name"), block.get("params", {})
+            if params_block is None:
+                params_block = {}
+        else:
+            name = block
+        available = sorted(k for k, e in registry.entries["unetyemu_ecs.controllers"].items() if e.spec.layer == layer)
+        if not isinstance(name, str) or not name:
+            article = "an" if layer.value[0] in "aeiou" else "a"
+            issues.append(src.issue(lpath, f"a {kind} needs {article} {layer.value} controller: name one of "
+                                           f"{', '.join(available) or 'none installed'} (got {name!r})"))
+            continue
+        try:
+            entry = registry.controller_entry(name, layer)
+        except KeyError as exc:
+            issues.append(src.issue(lpath, exc.args[0]))
+            continue
+        where = (*lpath, "params") if isinstance(block, dict) and "params" in block else lpath
+        params = convert(params_block, entry.spec.params, where, src, issues)
+        if params is not INVALID:
+            out[layer.value] = (name, params)
+    return out

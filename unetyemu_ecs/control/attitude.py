@@ -97,3 +97,20 @@ def manual_to_setpoints(stick: np.ndarray, lim_tilt_rad: np.ndarray, lim_climb_m
     s = np.clip(np.nan_to_num(np.asarray(stick, dtype=float).reshape(-1, 4)), -1.0, 1.0)
     vz_sp = np.where(s[:, 0] >= 0.0, s[:, 0] * lim_climb_m_s, s[:, 0] * lim_descent_m_s)
     return vz_sp, s[:, 2] * lim_tilt_rad, s[:, 1] * lim_tilt_rad, s[:, 3] * lim_yaw_rate_rad_s
+
+
+def angle_rate_pd_law(sp, state, airframe, params: StabilizerGains, memory: dict[str, np.ndarray], dt_s: float):
+    """The built-in attitude layer ``angle_rate_pd`` (the paper's layer 2): AttitudeSetpoint ->
+    ThrustTorqueCommand, by :func:`vertical_speed_to_thrust_frac` (memory ``vz_int_m_s``) and
+    :func:`attitude_to_torque_cmd`."""
+    from ..frames import euler_rpy_from_quat_xyzw
+    from .layers import ThrustTorqueCommand
+
+    roll, pitch, _ = euler_rpy_from_quat_xyzw(state.quat_enu_flu_xyzw)
+    cos_tilt = np.cos(roll) * np.cos(pitch)
+    thrust, vz_int = vertical_speed_to_thrust_frac(sp.vz_m_s, state.vel_enu_m_s[:, 2], state.acc_enu_m_s2[:, 2],
+                                                   memory["vz_int_m_s"], airframe.hover_thrust_frac, cos_tilt,
+                                                   dt_s, params)
+    torque = attitude_to_torque_cmd(sp.roll_rad, sp.pitch_rad, sp.yaw_rate_rad_s, roll, pitch, state.rate_flu_rad_s,
+                                    params)
+    return ThrustTorqueCommand(thrust, torque), {"vz_int_m_s": vz_int}

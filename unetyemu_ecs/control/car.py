@@ -20,22 +20,31 @@ SPEED_FOR_STEER_SCALE_M_S = 50.0   # the steering limit falls linearly to its sc
 
 
 @dataclass(frozen=True, kw_only=True)
-class CarControllerGains:
-    """Layer-2 and route-following gains for cars (world-file key ``car_controller``); ours."""
+class CarGuidanceParams:
+    """Route following of a car (world-file key ``car_guidance``); ours."""
 
-    # Ranges: gains within 100 (defaults 0.3-1.2); accelerations within 5 g (50 m/s^2, beyond any tyre);
-    # look-ahead within 1 km or 60 s; speeds within 100 m/s (beyond any road car)
+    # Ranges: accelerations within 5 g (50 m/s^2, beyond any tyre); look-ahead within 1 km or 60 s;
+    # speeds within 100 m/s (beyond any road car)
+    max_lat_accel_m_s2: Annotated[float, Gt(0.0), Le(50.0)] = 2.5   # corner speeds of a route: v = sqrt(a_lat R)
+    max_decel_m_s2: Annotated[float, Gt(0.0), Le(50.0)] = 4.0       # the speed profile brakes for corners at 60 % of it
+    lead_min_m: Annotated[float, Gt(0.0), Le(1_000.0)] = 3.0           # pure-pursuit look-ahead: max(lead_min, lead_time v)
+    lead_time_s: Annotated[float, Ge(0.0), Le(60.0)] = 0.5
+    arrival_radius_m: Annotated[float, Gt(0.0), Le(100.0)] = 1.0     # a route is done within this of its end, stopped
+    cruise_speed_m_s: Annotated[float, Gt(0.0), Le(100.0)] = 8.0     # default speed of targets and routes
+
+
+@dataclass(frozen=True, kw_only=True)
+class SpeedSteerGains:
+    """Gains of the built-in drive controller ``speed_pi_steer`` (``controller: {drive: {name:
+    speed_pi_steer, params: {...}}}``); ours."""
+
+    # Ranges: gains within 100 (defaults 0.3-1.2); accelerations within 5 g (50 m/s^2, beyond any tyre)
     gain_speed_p: Annotated[float, Gt(0.0), Le(100.0)] = 1.2         # [1/s] speed error -> acceleration
     gain_speed_i: Annotated[float, Ge(0.0), Le(100.0)] = 0.4         # [1/s^2]
     lim_speed_int_m_s2: Annotated[float, Ge(0.0), Le(50.0)] = 1.5   # clamp on the integral's acceleration
     gain_yaw_rate_p: Annotated[float, Ge(0.0), Le(100.0)] = 0.3      # [s] yaw-rate error -> extra steering [rad]
     max_accel_m_s2: Annotated[float, Gt(0.0), Le(50.0)] = 3.0       # comfort limits of the speed controller
     max_decel_m_s2: Annotated[float, Gt(0.0), Le(50.0)] = 4.0
-    max_lat_accel_m_s2: Annotated[float, Gt(0.0), Le(50.0)] = 2.5   # corner speeds of a route: v = sqrt(a_lat R)
-    lead_min_m: Annotated[float, Gt(0.0), Le(1_000.0)] = 3.0           # pure-pursuit look-ahead: max(lead_min, lead_time v)
-    lead_time_s: Annotated[float, Ge(0.0), Le(60.0)] = 0.5
-    arrival_radius_m: Annotated[float, Gt(0.0), Le(100.0)] = 1.0     # a route is done within this of its end, stopped
-    cruise_speed_m_s: Annotated[float, Gt(0.0), Le(100.0)] = 8.0     # default speed of targets and routes
 
 
 def steer_limit_rad(speed_m_s: np.ndarray, max_steer_rad: np.ndarray, scale_at_50_m_s: np.ndarray) -> np.ndarray:
@@ -83,7 +92,7 @@ def drive_torque_n_m(throttle: np.ndarray, speed_fwd_m_s: np.ndarray, max_torque
 def speed_to_throttle_brake(speed_sp_m_s: np.ndarray, speed_m_s: np.ndarray, speed_int: np.ndarray, dt_s: float,
                             feedforward_n: np.ndarray, mass_kg: np.ndarray, wheel_radius_m: np.ndarray,
                             max_drive_n_m: np.ndarray, max_brake_n_m: np.ndarray, top_speed_m_s: np.ndarray,
-                            gains: CarControllerGains) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                            gains: SpeedSteerGains) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """PI speed control: return ``(throttle in [-1, 1], brake in [0, 1], new integral)``, each (N,).
 
     ``a = kp e + ki int(e)`` limited to ``[-max_decel, max_accel]`` [m/s^2]; the force
@@ -116,7 +125,7 @@ def speed_to_throttle_brake(speed_sp_m_s: np.ndarray, speed_m_s: np.ndarray, spe
 
 
 def yaw_rate_to_steer(yaw_rate_sp_rad_s: np.ndarray, yaw_rate_rad_s: np.ndarray, speed_m_s: np.ndarray,
-                      wheelbase_m: np.ndarray, gains: CarControllerGains) -> np.ndarray:
+                      wheelbase_m: np.ndarray, gains: SpeedSteerGains) -> np.ndarray:
     """Bicycle-model steering (N,) [rad] for a yaw rate: ``atan(L r / v)`` plus P on the rate error.
 
     Below 0.5 m/s the kinematic term uses 0.5 m/s (a car cannot turn on the spot).
@@ -181,14 +190,51 @@ def route_speed_sp(s_along_m: np.ndarray, cum_m: np.ndarray, point_speeds_m_s: n
 
 
 __all__ = [
-    "CarControllerGains",
+    "CarGuidanceParams",
+    "SpeedSteerGains",
     "ackermann_angles",
     "bicycle_limit_rad",
     "corner_speeds_m_s",
     "drive_torque_n_m",
     "pure_pursuit_steer",
     "route_speed_sp",
+    "speed_pi_steer_law",
     "speed_to_throttle_brake",
     "steer_limit_rad",
     "yaw_rate_to_steer",
 ]
+
+
+def speed_pi_steer_law(sp, state, chassis, params: SpeedSteerGains, memory: dict[str, np.ndarray], dt_s: float):
+    """The built-in drive layer ``speed_pi_steer``: CarSetpoint -> CarCommand.
+
+    Speed by :func:`speed_to_throttle_brake` (PI, memory ``speed_int``, with rolling resistance fed
+    forward); steering: the route's angle where given, else :func:`yaw_rate_to_steer`. Bumpless:
+    when the layer engages (memory ``engaged`` is 0, as after a reset) the integral starts at the
+    value that reproduces the acceleration of the throttle and brake applied now, so taking over
+    from manual driving or the parking brake causes no jerk.
+    """
+    from ..units import GRAVITY_M_S2
+    from .layers import CarCommand
+
+    v = state.speed_m_s
+    integral = memory["speed_int"].copy()
+    fresh = memory["engaged"] < 0.5
+    if fresh.any():
+        direction = np.where(np.abs(v) > 0.3, np.sign(v), 1.0)
+        drive_n = drive_torque_n_m(state.throttle, v, chassis.max_drive_torque_n_m,
+                                   chassis.top_speed_m_s) / chassis.wheel_radius_m
+        brake_n = state.brake * 4.0 * chassis.max_brake_torque_n_m / chassis.wheel_radius_m
+        acc_now = (drive_n - direction * brake_n * (np.abs(v) > 0.3)) / chassis.mass_kg
+        ki = np.maximum(params.gain_speed_i, 1e-9)
+        start = (acc_now - params.gain_speed_p * (sp.speed_m_s - v)) / ki
+        lim = params.lim_speed_int_m_s2 / ki
+        start = np.where(params.gain_speed_i > 0, np.clip(start, -lim, lim), 0.0)
+        integral = np.where(fresh, start, integral)
+    rolling_n = chassis.rolling_resistance_coeff * chassis.mass_kg * GRAVITY_M_S2
+    throttle, brake, integral = speed_to_throttle_brake(
+        sp.speed_m_s, v, integral, dt_s, rolling_n, chassis.mass_kg, chassis.wheel_radius_m,
+        chassis.max_drive_torque_n_m, chassis.max_brake_torque_n_m, chassis.top_speed_m_s, params)
+    by_rate = yaw_rate_to_steer(sp.yaw_rate_rad_s, state.yaw_rate_rad_s, v, chassis.wheelbase_m, params)
+    steer = np.where(np.isfinite(sp.steer_rad), sp.steer_rad, by_rate)
+    return CarCommand(throttle, brake, steer), {"speed_int": integral, "engaged": np.ones_like(integral)}

@@ -51,6 +51,14 @@ LAYERS_OF_KIND: dict[str, tuple[Layer, ...]] = {
     "car": (Layer.DRIVE,),
 }
 
+# the built-in controller of each layer, used where a vehicle's `controller:` block names none
+DEFAULT_CONTROLLER: dict[Layer, str] = {
+    Layer.POSITION: "cascade_pid",
+    Layer.ATTITUDE: "angle_rate_pd",
+    Layer.MIXER: "x_quad_priority",
+    Layer.DRIVE: "speed_pi_steer",
+}
+
 
 # -- drones -------------------------------------------------------------------------------------
 @dataclass(frozen=True, slots=True)
@@ -137,6 +145,8 @@ class CarState:
     speed_m_s: np.ndarray          # forward speed along the body x axis (negative when reversing)
     yaw_rate_rad_s: np.ndarray     # about the body z axis, counter-clockwise positive
     steer_rad: np.ndarray          # applied bicycle-model steering angle, left positive
+    throttle: np.ndarray           # applied in the last step, [-1, 1]
+    brake: np.ndarray              # applied in the last step, [0, 1]
 
 
 @dataclass(frozen=True, slots=True)
@@ -177,6 +187,6 @@ INPUT_OF_LAYER = {Layer.POSITION: PositionSetpoint, Layer.ATTITUDE: AttitudeSetp
 OUTPUT_OF_LAYER = {Layer.POSITION: AttitudeSetpoint, Layer.ATTITUDE: ThrustTorqueCommand,
                    Layer.MIXER: MotorCommand, Layer.DRIVE: CarCommand}
 
-__all__ = ["INPUT_OF_LAYER", "LAYERS_OF_KIND", "OUTPUT_OF_LAYER", "Airframe", "AttitudeSetpoint", "CarChassis",
+__all__ = ["DEFAULT_CONTROLLER", "INPUT_OF_LAYER", "LAYERS_OF_KIND", "OUTPUT_OF_LAYER", "Airframe", "AttitudeSetpoint", "CarChassis",
            "CarCommand", "CarSetpoint", "CarState", "DroneState", "Layer", "MotorCommand", "PositionSetpoint",
            "ThrustTorqueCommand"]

@@ -17,6 +17,8 @@ on the motors whose reaction torque is +z: FR and BL, which spin clockwise).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 MOTOR_NAMES = ("FL", "FR", "BR", "BL")
@@ -81,3 +83,16 @@ def mix_x_quad(thrust_frac: np.ndarray, torque_cmd: np.ndarray) -> np.ndarray:
     out = base + scale[:, None] * yw
     # 4. numerical safety only
     return np.clip(out, 0.0, 1.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class XQuadMixer:
+    """The built-in mixer ``x_quad_priority`` has no parameters (world file: ``controller: {mixer:
+    x_quad_priority}``)."""
+
+
+def x_quad_priority_law(cmd, state, airframe, params: XQuadMixer, memory: dict[str, np.ndarray], dt_s: float):
+    """The built-in mixer layer ``x_quad_priority``: ThrustTorqueCommand -> MotorCommand by :func:`mix_x_quad`."""
+    from .layers import MotorCommand
+
+    return MotorCommand(mix_x_quad(cmd.thrust_frac, cmd.torque_cmd)), {}

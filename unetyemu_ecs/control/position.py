@@ -121,3 +121,34 @@ def body_velocity_to_enu_sp(vel_flu_m_s: np.ndarray, yaw_rad: np.ndarray, lim_cl
     c, s = np.cos(yaw_rad), np.sin(yaw_rad)
     fwd, left, up = vel_flu_m_s[:, 0], vel_flu_m_s[:, 1], vel_flu_m_s[:, 2]
     return np.stack([c * fwd - s * left, s * fwd + c * left, np.clip(up, -lim_descent_m_s, lim_climb_m_s)], axis=1)
+
+
+def cascade_pid_law(sp, state, airframe, params: GuidanceGains, memory: dict[str, np.ndarray], dt_s: float):
+    """The built-in position layer ``cascade_pid``: PositionSetpoint -> AttitudeSetpoint.
+
+    Rows flying to a position: line-of-sight velocity (:func:`position_to_velocity_sp`) within the
+    leg's speed limits and the airframe's climb/descent limits; rows flying a velocity take it as
+    given. Then the velocity PI (:func:`velocity_to_accel_sp`, memory ``vel_int_m_s``) and the tilt
+    mapping (:func:`accel_to_tilt_sp`); heading P (:func:`heading_to_yaw_rate_sp`) or the commanded
+    yaw rate, within the yaw-rate limit.
+    """
+    from ..frames import yaw_rad_from_quat_xyzw
+    from .layers import AttitudeSetpoint
+
+    to_pos = sp.flies_to_position
+    pos = state.pos_enu_m
+    target = np.where(to_pos[:, None], sp.pos_enu_m, pos)
+    vel_to_pos = position_to_velocity_sp(target, pos, np.where(to_pos, sp.dist_to_go_m, 0.0), sp.speed_limit_m_s[:, 0],
+                                         np.minimum(sp.speed_limit_m_s[:, 1], airframe.lim_climb_m_s),
+                                         np.minimum(sp.speed_limit_m_s[:, 2], airframe.lim_descent_m_s), params)
+    vel_sp = np.where(to_pos[:, None], vel_to_pos, sp.vel_enu_m_s)
+    acc_h, vel_int = velocity_to_accel_sp(vel_sp, state.vel_enu_m_s, memory["vel_int_m_s"], dt_s,
+                                          airframe.max_tilt_rad, params)
+    yaw = yaw_rad_from_quat_xyzw(state.quat_enu_flu_xyzw)
+    roll_sp, pitch_sp = accel_to_tilt_sp(acc_h, yaw, airframe.max_tilt_rad)
+    hold_heading = np.isfinite(sp.yaw_rad)
+    yaw_rate = np.where(hold_heading,
+                        heading_to_yaw_rate_sp(np.where(hold_heading, sp.yaw_rad, yaw), yaw,
+                                               airframe.lim_yaw_rate_rad_s, params),
+                        np.clip(sp.yaw_rate_rad_s, -airframe.lim_yaw_rate_rad_s, airframe.lim_yaw_rate_rad_s))
+    return AttitudeSetpoint(vel_sp[:, 2], roll_sp, pitch_sp, yaw_rate), {"vel_int_m_s": vel_int}

@@ -69,22 +69,28 @@ FLIGHT_ARRAYS: dict[str, tuple[tuple[int, ...], type, float]] = {
     "motors_enabled": ((), np.bool_, True),
     "stick": ((4,), np.float64, 0.0),                 # [throttle, pitch, roll, yaw] in [-1, 1]
     "route_stamp": ((), np.int64, 0),                 # bumped whenever `route` changes
+    "has_route": ((), np.bool_, False),               # `route` is not None
     "route_segment": ((), np.int64, 0),
     "arrived": ((), np.bool_, False),                 # within arrival radius of the route's end
     "dist_to_final_m": ((), np.float64, 0.0),
     "cross_track_m": ((), np.float64, 0.0),
-    "pos_sp_enu_m": ((3,), np.float64, 0.0),          # virtual target of the position loop
-    "vel_sp_enu_m_s": ((3,), np.float64, 0.0),
+    # position-layer setpoint (control.layers.PositionSetpoint), written by route following
+    "pos_sp_enu_m": ((3,), np.float64, 0.0),          # virtual target on the route; NaN: fly vel_sp_enu_m_s
+    "vel_sp_enu_m_s": ((3,), np.float64, 0.0),        # commanded velocity (VELOCITY mode), ENU
+    "speed_limit_m_s": ((3,), np.float64, 0.0),       # horizontal, climb, descent caps of the current leg
+    "dist_to_go_m": ((), np.float64, 0.0),            # along the route to its end
+    "yaw_sp_rad": ((), np.float64, np.nan),           # heading to hold, ENU; NaN: turn at yaw_rate_cmd_rad_s
     "vel_cmd_flu_m_s": ((3,), np.float64, 0.0),       # VELOCITY mode: [forward, left, up], body frame
     "yaw_rate_cmd_rad_s": ((), np.float64, 0.0),      # VELOCITY mode: CCW positive
-    "vel_int_m_s": ((2,), np.float64, 0.0),           # horizontal velocity-loop integral
+    # attitude-layer setpoint (control.layers.AttitudeSetpoint), from the position layer or the sticks
     "vz_sp_m_s": ((), np.float64, 0.0),
-    "vz_int_m_s": ((), np.float64, 0.0),              # vertical-speed-loop integral
     "roll_sp_rad": ((), np.float64, 0.0),
     "pitch_sp_rad": ((), np.float64, 0.0),
     "yaw_rate_sp_rad_s": ((), np.float64, 0.0),
+    # attitude-layer command (control.layers.ThrustTorqueCommand), the mixer's input
     "thrust_frac_sp": ((), np.float64, 0.0),          # collective, fraction of 4 F_max
     "torque_cmd": ((3,), np.float64, 0.0),            # normalised [roll, pitch, yaw]
+    "motor_frac_cmd": ((4,), np.float64, 0.0),        # the mixer's output: FL, FR, BR, BL fractions of F_max
     "motor_thrust_cmd_n": ((4,), np.float64, 0.0),    # FL, FR, BR, BL
     "motor_thrust_n": ((4,), np.float64, 0.0),        # after lag: what is applied
     "power_w": ((), np.float64, 0.0),
@@ -113,8 +119,16 @@ def declare_flight_arrays(fleet: FleetState) -> None:
 
 
 def set_route(fleet: FleetState, row: int, route: Route | None) -> None:
-    """Give drone ``row`` a new route (None clears it) and restart following from its first segment."""
+    """Give drone ``row`` a new route (None clears it) and restart following from its first segment.
+
+    A route without a heading (NaN ``yaw_sp_rad``) holds the heading the drone has now."""
+    from ..frames import yaw_rad_from_quat_xyzw
+
     fleet.route[row] = route
+    fleet.has_route[row] = route is not None
+    if route is not None:
+        fleet.yaw_sp_rad[row] = (float(yaw_rad_from_quat_xyzw(fleet.quat_enu_flu_xyzw[row])) if np.isnan(route.yaw_sp_rad)
+                                 else route.yaw_sp_rad)
     fleet.route_stamp[row] += 1
     fleet.route_segment[row] = 0
     fleet.arrived[row] = False

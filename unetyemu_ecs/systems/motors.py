@@ -1,61 +1,51 @@
 """ACTUATE phase, layer 1: per-motor thrust of every quadrotor, applied at each motor's position.
 
-The paper's §2.1.1: the collective thrust and the normalised roll/pitch/yaw commands are mixed
-into four motor forces (X configuration), each held in [0, F_max] by attitude-priority
-desaturation; optional first-order motor lag; each force acts along the body z axis *at its motor's
+The paper's §2.1.1: the mixer layer (``controller: {mixer: ...}``, default ``x_quad_priority``:
+X configuration, attitude-priority desaturation) has turned the collective thrust and the
+normalised roll/pitch/yaw commands into a fraction of F_max per motor; this system adds the
+optional first-order motor lag; each force acts along the body z axis *at its motor's
 position* (so roll and pitch torques arise from the lever arms), and yaw comes only from the rotor
 reaction torques ``kappa * F_i`` with alternating spin directions.
 """
 
 from __future__ import annotations
 
-import esper
 import numpy as np
 
 from ..components.flight import QuadrotorMotors
-from ..control.mixer import SPIN_REACTION_SIGN, mix_x_quad, motor_positions_flu_m
+from ..control.mixer import SPIN_REACTION_SIGN, motor_positions_flu_m
 from ..frames import R_from_quat_xyzw
 from ..phases import Phase
 from ..world import StepContext
-from .flight_state import FlightMode, declare_flight_arrays
-from .rows import gather_rows
+from .fleet_system import FleetSystem
+from .flight_state import FlightMode
 
 
-class MotorSystem(esper.Processor):
-    """Mix, limit, lag and apply motor thrusts for every quadrotor in one pass.
+class MotorSystem(FleetSystem):
+    """Lag and apply the mixer's motor thrusts for every quadrotor in one pass.
 
-    Phase: ACTUATE. Reads: fleet.thrust_frac_sp, torque_cmd, flight_mode, motors_enabled, pose.
-    Writes: fleet.motor_thrust_cmd_n, motor_thrust_n, torque_cmd_enu_n_m (adds the reaction torque);
-    applies one force per motor to PyBullet.
+    Phase: ACTUATE (order 20, after the mixer layer). Reads: fleet.motor_frac_cmd, flight_mode,
+    motors_enabled, pose. Writes: fleet.motor_thrust_cmd_n, motor_thrust_n, torque_cmd_enu_n_m (adds
+    the reaction torque); applies one force per motor to PyBullet.
     """
 
     phase = Phase.ACTUATE
     order = 20
+    requires = (QuadrotorMotors,)
 
-    def __init__(self) -> None:
-        self._seen_version = -1
-        self._rows = np.empty(0, dtype=np.intp)
-
-    def _gather(self, ctx: StepContext) -> None:
-        declare_flight_arrays(ctx.fleet)
-        self._rows, comps = gather_rows(QuadrotorMotors)
+    def gather(self, ctx: StepContext) -> None:
+        (comps,) = self.components
         self._f_max = np.array([c.max_thrust_per_motor_n for c in comps])
         self._kappa = np.array([c.yaw_moment_coeff_m for c in comps])
         self._tau = np.array([c.motor_tau_s for c in comps])
         self._r_flu = motor_positions_flu_m(np.array([c.arm_length_m for c in comps]))   # (M, 4, 3)
-        self._bodies4 = np.repeat(ctx.fleet.body_id[self._rows], 4)
+        self._bodies4 = np.repeat(ctx.fleet.body_id[self.rows], 4)
 
-    def process(self, ctx: StepContext) -> None:
+    def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
-        if f.version != self._seen_version:
-            self._gather(ctx)
-            self._seen_version = f.version
-        r = self._rows
-        if r.size == 0:
-            return
+        r = self.rows
         live = (f.flight_mode[r] != FlightMode.DISARMED) & f.motors_enabled[r]
-        frac = mix_x_quad(f.thrust_frac_sp[r], f.torque_cmd[r])                      # (M, 4) in [0, 1]
-        cmd = frac * (self._f_max * live)[:, None]
+        cmd = f.motor_frac_cmd[r] * (self._f_max * live)[:, None]
         f.motor_thrust_cmd_n[r] = cmd
         alpha = np.where(self._tau > 0.0, 1.0 - np.exp(-ctx.dt_s / np.maximum(self._tau, 1e-12)), 1.0)
         thrust = f.motor_thrust_n[r] + alpha[:, None] * (cmd - f.motor_thrust_n[r])

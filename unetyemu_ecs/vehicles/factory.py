@@ -74,6 +74,8 @@ def spawn_entity(physics: PhysicsClient, fleet: FleetState, ent: EntityDefinitio
             esper.add_component(eid, MissionRuntime(spec=comp))
         else:
             esper.add_component(eid, comp)
+    for _name, params in ent.controllers.values():    # the parameters of each layer's controller select it
+        esper.add_component(eid, params)
     return eid
 
 

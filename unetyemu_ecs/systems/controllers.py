@@ -1,0 +1,221 @@
+"""The systems that run each vehicle's chosen controller of each layer (see :mod:`..control.layers`).
+
+For every controller in use the simulation adds one system, made by :func:`controller_system`:
+its rows are the vehicles that carry that controller's parameter component, so a vehicle whose
+layer was replaced is simply not in the built-in controller's rows (nothing of the built-in runs
+for it, no integrator winds up in the background). The system gathers the rows and stacks the
+parameters when the ECS changes, builds the layer's typed setpoint and state from the fleet
+arrays, calls the law once for all its rows, and writes the command back:
+
+========== ========= ================================================ =====================================
+layer      phase     reads (fleet arrays)                             writes
+========== ========= ================================================ =====================================
+position   GUIDANCE  pos_sp_enu_m, vel_sp_enu_m_s, speed_limit_m_s,   vz_sp_m_s, roll_sp_rad, pitch_sp_rad,
+                     dist_to_go_m, yaw_sp_rad, yaw_rate_cmd_rad_s     yaw_rate_sp_rad_s
+attitude   STABILIZE those four setpoints (from the sticks in MANUAL)  thrust_frac_sp, torque_cmd
+mixer      ACTUATE   thrust_frac_sp, torque_cmd                       motor_frac_cmd
+drive      STABILIZE car_speed_sp_m_s, car_steer_sp_rad, cmd_vel       car_throttle, car_brake, car_steer_rad
+========== ========= ================================================ =====================================
+
+A law's memory lives in fleet arrays named ``ctl_<params class>_<name>``; it is reset to its
+initial value while a drone is disarmed, and when a drone enters a position-controlled mode (AUTO
+or VELOCITY) from another mode.
+"""
+
+from __future__ import annotations
+
+from importlib import import_module
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ..components.body import RigidBody
+from ..components.flight import GuidanceLimits, QuadrotorMotors
+from ..control.attitude import manual_to_setpoints
+from ..control.layers import (Airframe, AttitudeSetpoint, DroneState, Layer, PositionSetpoint, ThrustTorqueCommand)
+from ..phases import Phase
+from ..plugins import ControllerPlugin
+from ..units import GRAVITY_M_S2
+from ..world import StepContext
+from .fleet_system import FleetSystem, stack_params, take_params
+from .flight_state import FlightMode
+
+
+def box_inertia_flu_kg_m2(mass_kg: np.ndarray, half_extents_m: np.ndarray) -> np.ndarray:
+    """Principal moments (N, 3) [kg m^2] of uniform boxes (what PyBullet gives a box body)."""
+    h2 = np.asarray(half_extents_m, dtype=float).reshape(-1, 3) ** 2
+    m = np.asarray(mass_kg, dtype=float).reshape(-1, 1)
+    return m / 3.0 * np.stack([h2[:, 1] + h2[:, 2], h2[:, 0] + h2[:, 2], h2[:, 0] + h2[:, 1]], axis=1)
+
+
+class ControllerSystem(FleetSystem):
+    """Runs one registered controller for the vehicles that chose it; subclassed per layer, then
+    per controller by :func:`controller_system`."""
+
+    plugin: ClassVar[ControllerPlugin]
+    key: ClassVar[str] = ""
+
+    def gather(self, ctx: StepContext) -> None:
+        f = ctx.fleet
+        self.params = stack_params(self.components[0], self.plugin.params)
+        self._memory_names = {}
+        for name, (tail, initial) in self.plugin.memory.items():
+            array_name = f"ctl_{self.plugin.params.__name__}_{name}"
+            f.declare(array_name, tuple(tail), np.float64, float(initial))
+            self._memory_names[name] = array_name
+
+    def read_memory(self, ctx: StepContext, rows: np.ndarray) -> dict[str, np.ndarray]:
+        return {name: getattr(ctx.fleet, arr)[rows] for name, arr in self._memory_names.items()}
+
+    def write_memory(self, ctx: StepContext, rows: np.ndarray, memory: dict[str, np.ndarray]) -> None:
+        for name, arr in self._memory_names.items():
+            if name not in memory:
+                raise KeyError(f"controller {self.key!r} returned no memory {name!r}")
+            getattr(ctx.fleet, arr)[rows] = memory[name]
+
+    def reset_memory(self, ctx: StepContext, rows: np.ndarray) -> None:
+        """Back to the declared initial values for ``rows``."""
+        for name, arr in self._memory_names.items():
+            getattr(ctx.fleet, arr)[rows] = float(self.plugin.memory[name][1])
+
+    def call_law(self, ctx: StepContext, setpoint: Any, state: Any, frame: Any, params: Any, rows: np.ndarray) -> Any:
+        command, memory = self.plugin.law(setpoint, state, frame, params, self.read_memory(ctx, rows), ctx.dt_s)
+        self.write_memory(ctx, rows, memory)
+        return command
+
+
+class DroneControllerSystem(ControllerSystem):
+    """A drone layer: rows with the controller's parameters, motors, guidance limits and a body."""
+
+    def gather(self, ctx: StepContext) -> None:
+        super().gather(ctx)
+        _, motors, limits, bodies = self.components
+        mass = np.array([b.mass_kg for b in bodies])
+        f_max = np.array([m.max_thrust_per_motor_n for m in motors])
+        self.airframe = Airframe(
+            mass_kg=mass,
+            inertia_flu_kg_m2=box_inertia_flu_kg_m2(mass, np.array([b.half_extents_m for b in bodies]).reshape(-1, 3)),
+            max_thrust_per_motor_n=f_max,
+            arm_length_m=np.array([m.arm_length_m for m in motors]),
+            yaw_moment_coeff_m=np.array([m.yaw_moment_coeff_m for m in motors]),
+            hover_thrust_frac=mass * GRAVITY_M_S2 / (4.0 * f_max),
+            max_tilt_rad=np.deg2rad([lim.max_tilt_deg for lim in limits]),
+            lim_climb_m_s=np.array([lim.lim_climb_m_s for lim in limits], dtype=float),
+            lim_descent_m_s=np.array([lim.lim_descent_m_s for lim in limits], dtype=float),
+            lim_yaw_rate_rad_s=np.deg2rad([lim.lim_yaw_rate_deg_s for lim in limits]))
+
+    def state(self, ctx: StepContext, rows: np.ndarray) -> DroneState:
+        f = ctx.fleet
+        return DroneState(f.pos_enu_m[rows], f.vel_enu_m_s[rows], f.acc_enu_m_s2[rows], f.quat_enu_flu_xyzw[rows],
+                          f.rate_flu_rad_s[rows])
+
+    def subset(self, k: np.ndarray) -> tuple[Any, Any]:
+        """Parameters and airframe of the local indices ``k``."""
+        return take_params(self.params, k), take_params(self.airframe, k)
+
+
+class PositionControllerSystem(DroneControllerSystem):
+    """Position layer: PositionSetpoint -> AttitudeSetpoint for the AUTO (with a route) and VELOCITY rows."""
+
+    phase = Phase.GUIDANCE
+    order = 10
+
+    def gather(self, ctx: StepContext) -> None:
+        super().gather(ctx)
+        self._mode_seen = ctx.fleet.flight_mode[self.rows].copy()
+
+    def update(self, ctx: StepContext) -> None:
+        f = ctx.fleet
+        mode = f.flight_mode[self.rows]
+        entered = mode != self._mode_seen
+        self._mode_seen = mode.copy()
+        active = ((mode == FlightMode.AUTO) & f.has_route[self.rows]) | (mode == FlightMode.VELOCITY)
+        if (entered & active).any():
+            self.reset_memory(ctx, self.rows[entered & active])
+        k = np.flatnonzero(active)
+        if k.size == 0:
+            return
+        r = self.rows[k]
+        sp = PositionSetpoint(f.pos_sp_enu_m[r], f.vel_sp_enu_m_s[r], f.speed_limit_m_s[r], f.dist_to_go_m[r],
+                              f.yaw_sp_rad[r], f.yaw_rate_cmd_rad_s[r])
+        params, airframe = self.subset(k)
+        out: AttitudeSetpoint = self.call_law(ctx, sp, self.state(ctx, r), airframe, params, r)
+        f.vz_sp_m_s[r] = out.vz_m_s
+        f.roll_sp_rad[r] = out.roll_rad
+        f.pitch_sp_rad[r] = out.pitch_rad
+        f.yaw_rate_sp_rad_s[r] = out.yaw_rate_rad_s
+
+
+class AttitudeControllerSystem(DroneControllerSystem):
+    """Attitude layer: AttitudeSetpoint -> ThrustTorqueCommand for every drone (zero while disarmed).
+
+    MANUAL rows take their setpoint from the sticks first (``manual_to_setpoints``), so manual and
+    automatic flight feed the same loops with the same memory: switching causes no jump.
+    """
+
+    phase = Phase.STABILIZE
+    order = 0
+
+    def update(self, ctx: StepContext) -> None:
+        f = ctx.fleet
+        r = self.rows
+        mode = f.flight_mode[r]
+        manual = mode == FlightMode.MANUAL
+        if manual.any():
+            a, rm = self.airframe, r[manual]
+            vz_sp, roll_sp, pitch_sp, yaw_rate_sp = manual_to_setpoints(
+                f.stick[rm], a.max_tilt_rad[manual], a.lim_climb_m_s[manual], a.lim_descent_m_s[manual],
+                a.lim_yaw_rate_rad_s[manual])
+            f.vz_sp_m_s[rm] = vz_sp
+            f.roll_sp_rad[rm] = roll_sp
+            f.pitch_sp_rad[rm] = pitch_sp
+            f.yaw_rate_sp_rad_s[rm] = yaw_rate_sp
+        sp = AttitudeSetpoint(f.vz_sp_m_s[r], f.roll_sp_rad[r], f.pitch_sp_rad[r], f.yaw_rate_sp_rad_s[r])
+        out: ThrustTorqueCommand = self.call_law(ctx, sp, self.state(ctx, r), self.airframe, self.params, r)
+        armed = mode != FlightMode.DISARMED
+        f.thrust_frac_sp[r] = np.where(armed, out.thrust_frac, 0.0)
+        f.torque_cmd[r] = np.where(armed[:, None], out.torque_cmd, 0.0)
+        if not armed.all():
+            self.reset_memory(ctx, r[~armed])
+
+
+class MixerSystem(DroneControllerSystem):
+    """Mixer layer: ThrustTorqueCommand -> MotorCommand (motor_frac_cmd) for every drone."""
+
+    phase = Phase.ACTUATE
+    order = 15
+
+    def update(self, ctx: StepContext) -> None:
+        f = ctx.fleet
+        r = self.rows
+        cmd = ThrustTorqueCommand(f.thrust_frac_sp[r], f.torque_cmd[r])
+        out = self.call_law(ctx, cmd, self.state(ctx, r), self.airframe, self.params, r)
+        frac = np.asarray(out.motor_frac, dtype=float)
+        f.motor_frac_cmd[r] = np.clip(np.nan_to_num(frac, nan=0.0), 0.0, 1.0)
+
+
+_DRONE_REQUIRES = (QuadrotorMotors, GuidanceLimits, RigidBody)
+_LAYER_BASES: dict[Layer, tuple[type[ControllerSystem], tuple[type, ...]]] = {
+    Layer.POSITION: (PositionControllerSystem, _DRONE_REQUIRES),
+    Layer.ATTITUDE: (AttitudeControllerSystem, _DRONE_REQUIRES),
+    Layer.MIXER: (MixerSystem, _DRONE_REQUIRES),
+}
+
+
+def register_layer(layer: Layer, base: type[ControllerSystem], requires: tuple[type, ...]) -> None:
+    """Make ``base`` the system class of ``layer`` (used by the car module for the drive layer)."""
+    _LAYER_BASES[layer] = (base, requires)
+
+
+def controller_system(key: str, plugin: ControllerPlugin) -> ControllerSystem:
+    """A new system running controller ``key`` (a class of its own: esper keeps one system per class)."""
+    import_module(".car_drive", __package__)      # registers the drive layer (it imports this module)
+
+    base, requires = _LAYER_BASES[plugin.layer]
+    cls = type(f"{base.__name__}[{key}]", (base,), {"plugin": plugin, "key": key,
+                                                    "requires": (plugin.params, *requires)})
+    return cls()
+
+
+__all__ = ["AttitudeControllerSystem", "ControllerSystem", "MixerSystem", "PositionControllerSystem",
+           "box_inertia_flu_kg_m2", "controller_system", "register_layer"]
