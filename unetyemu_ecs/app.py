@@ -420,15 +420,80 @@ class Simulation:
         return None if sample is None else sample.msg
 
     def sensor_keys(self, vehicle: str) -> list[str]:
-        """The keys :meth:`sensor` answers for ``vehicle``: its sensors, and ``<camera>_info`` for each
-        camera's CameraInfo."""
+        """The keys :meth:`sensor` answers for ``vehicle``: the sensors it carries now (attached in the
+        world file or by :meth:`attach`), and ``<camera>_info`` for each camera's CameraInfo."""
         keys = []
-        for key, comp in self.definition_of(vehicle).components.items():
+        for key, comp in self.components_of(vehicle).items():
             if isinstance(comp, SensorSpec):
                 keys.append(key)
                 if comp.OPTICAL:
                     keys.append(f"{key}_info")
         return keys
+
+    def components_of(self, name: str) -> dict[str, Any]:
+        """World-file key -> component that vehicle or package ``name`` carries now (plugins included)."""
+        eid = self.entity(name)
+        reg = self.definition.registry
+        with self.ecs.active():
+            have = {type(c): c for c in esper.components_for_entity(eid)}
+        out = {}
+        for entry in reg.all_entries():
+            comp_type = getattr(entry.spec, "component", None)
+            if comp_type is not None and comp_type in have:
+                out[entry.key] = have[comp_type]
+        if MissionRuntime in have:
+            out["mission"] = have[MissionRuntime].spec
+        return out
+
+    def attach(self, name: str, key: str, **params: Any) -> Any:
+        """Give vehicle or package ``name`` the component or sensor ``key`` (a world-file key: ``aero_drag``,
+        ``imu``, ``lidar``, a plugin's...) from the next step on, with ``params`` checked like the
+        world file's block (a vehicle's preset values fill what is not given). An existing component
+        of that key is replaced. The systems that act on it are added if the world had none.
+        Returns the component. Bad keys and parameters raise :class:`ConfigError` naming them."""
+        from dataclasses import replace
+
+        from .config.schema import INVALID, SourceMap, convert
+        from .vehicles.presets import component_tables
+
+        ent = self.definition_of(name)
+        where = f"attach({name!r}, {key!r})"
+        reg = self.definition.registry
+        try:
+            entry = reg.component_entry(key)
+        except KeyError as exc:
+            raise ConfigError([Issue(where, None, (key,), exc.args[0])]) from None
+        if key == "mission":
+            raise ConfigError([Issue(where, None, (key,), "a mission is started with load_mission(), not attached")])
+        if ent.kind not in entry.spec.applies_to:
+            raise ConfigError([Issue(where, None, (key,), f"component {key!r} cannot be attached to a {ent.kind} "
+                                                          f"(applies to: {', '.join(sorted(entry.spec.applies_to))})")])
+        block = {**component_tables(ent.params).get(key, {}), **params} if ent.kind != "package" else dict(params)
+        issues: list[Issue] = []
+        comp = convert(block, entry.spec.component, (key,), SourceMap(where), issues)
+        if comp is INVALID:
+            raise ConfigError(issues)
+        if isinstance(comp, SensorSpec) and not ent.ros2:
+            comp = replace(comp, ros2=False)
+        eid = self.entity(name)
+        with self.ecs.active():
+            esper.add_component(eid, comp)
+            present = {type(s) for s in self.ecs.systems}
+            for cls in entry.spec.systems:
+                if cls not in present:
+                    self.ecs.add_system(cls())
+        return comp
+
+    def detach(self, name: str, key: str) -> None:
+        """Take component or sensor ``key`` off vehicle or package ``name`` from the next step on (the
+        systems that act on it stop acting on it). A key it does not carry raises ``ValueError``."""
+        carried = self.components_of(name)
+        if key not in carried or key == "mission":
+            raise ValueError(f"detach({name!r}, {key!r}): {name!r} carries no {key!r} (it carries: "
+                             f"{', '.join(k for k in carried if k != 'mission') or 'none'})")
+        with self.ecs.active():
+            esper.remove_component(self.entity(name), type(carried[key]))
+        self.services.sensors.latest.pop((name, key), None)
 
     def transforms(self) -> tuple[Any, Any]:
         """The newest ``/tf`` and ``/tf_static`` TFMessages (None before the first step)."""

@@ -385,10 +385,11 @@ def cmd_plugins() -> int:
             print("  (none)")
         for key, entry in sorted(entries.items()):
             spec = entry.spec
-            schema = getattr(spec, "component", None) or getattr(spec, "config", None)
-            summary = f" - {spec.summary}" if spec.summary else ""
+            schema = getattr(spec, "component", None) or getattr(spec, "config", None) or getattr(spec, "params")
+            layer = getattr(spec, "layer", None)
+            summary = (f" - {layer} layer:" if layer else " -") + (f" {spec.summary}" if spec.summary else "")
             print(f"  {key:<18} [{entry.provider}]{summary}")
-            presets = _preset_values(key)
+            presets = {} if layer else _preset_values(key)
             for name, tname, default in describe_schema(schema):
                 print(f"      {name}: {tname} = {_default_text(default, presets.get(name))}")
     if reg.failures:
