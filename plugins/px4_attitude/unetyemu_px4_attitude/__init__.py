@@ -9,7 +9,7 @@ from __future__ import annotations
 from .law import MEMORY, Px4AttitudeParams, px4_attitude_law, torque_per_cmd_flu_n_m
 
 try:
-    from unetyemu_ecs.plugins import ControllerPlugin
+    from unetyemu_ecs.plugin_api import ControllerPlugin
 except ImportError as exc:  # pragma: no cover - depends on the environment
     raise ImportError("unetyemu-px4-attitude is a plugin of the unetyemu_ecs simulator: install it into the "
                       "environment that has unetyemu_ecs (.venv/bin/pip install ./plugins/px4_attitude from the "

@@ -51,11 +51,9 @@ from typing import Annotated
 import numpy as np
 
 try:
-    from unetyemu_ecs.config.schema import Ge, Le
-    from unetyemu_ecs.control.layers import Airframe, AttitudeSetpoint, DroneState, ThrustTorqueCommand
-    from unetyemu_ecs.frames import (R_from_quat_xyzw, quat_conjugate_xyzw, quat_multiply_xyzw,
-                                     quat_xyzw_from_euler_rpy)
-    from unetyemu_ecs.units import GRAVITY_M_S2
+    from unetyemu_ecs.plugin_api import (GRAVITY_M_S2, Airframe, AttitudeSetpoint, DroneState, Ge, Le,
+                                         R_from_quat_xyzw, ThrustTorqueCommand, quat_conjugate_xyzw,
+                                         quat_multiply_xyzw, quat_xyzw_from_euler_rpy)
 except ImportError as exc:  # pragma: no cover - depends on the environment
     raise ImportError("unetyemu-px4-attitude is a plugin of the unetyemu_ecs simulator: install it into the "
                       "environment that has unetyemu_ecs (.venv/bin/pip install ./plugins/px4_attitude from the "

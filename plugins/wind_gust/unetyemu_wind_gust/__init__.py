@@ -18,8 +18,7 @@ import esper
 import numpy as np
 
 try:
-    from unetyemu_ecs import Phase, StepContext, SystemPlugin
-    from unetyemu_ecs.config.schema import Ge, Le
+    from unetyemu_ecs.plugin_api import Ge, Le, Phase, StepContext, SystemPlugin
 except ImportError as exc:  # pragma: no cover - depends on the environment
     raise ImportError("unetyemu-wind-gust is a plugin of the unetyemu_ecs simulator: install it into the "
                       "environment that has unetyemu_ecs (.venv/bin/pip install ./plugins/wind_gust from the "
