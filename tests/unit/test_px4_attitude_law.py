@@ -6,6 +6,8 @@ PyBullet). Every loop runs a fixed number of 240 Hz steps, so nothing depends on
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
+import sys
 import typing
 
 import numpy as np
@@ -17,7 +19,13 @@ from unetyemu_ecs.control.mixer import SPIN_REACTION_SIGN, mix_x_quad, motor_pos
 from unetyemu_ecs.frames import (R_from_quat_xyzw, euler_rpy_from_quat_xyzw, quat_multiply_xyzw,
                                  quat_xyzw_from_euler_rpy)
 from unetyemu_ecs.units import GRAVITY_M_S2
-from unetyemu_px4_attitude import MEMORY, PX4_ATTITUDE, Px4AttitudeParams, px4_attitude_law, torque_per_cmd_flu_n_m
+
+from ..conftest import REPO_ROOT
+
+# the plugin installed (pip install ./plugins/px4_attitude) or, in a fresh environment without it, its source tree
+if importlib.util.find_spec("unetyemu_px4_attitude") is None:
+    sys.path.insert(0, str(REPO_ROOT / "plugins" / "px4_attitude"))
+from unetyemu_px4_attitude import MEMORY, PX4_ATTITUDE, Px4AttitudeParams, px4_attitude_law, torque_per_cmd_flu_n_m  # noqa: E402
 
 DT_S = 1.0 / 240.0
 
