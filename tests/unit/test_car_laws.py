@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from unetyemu_ecs.control.car import (CarControllerGains, ackermann_angles, bicycle_limit_rad, corner_speeds_m_s,
+from unetyemu_ecs.control.car import (SpeedSteerGains, ackermann_angles, bicycle_limit_rad, corner_speeds_m_s,
                                       drive_torque_n_m, pure_pursuit_steer, route_speed_sp, speed_to_throttle_brake,
                                       steer_limit_rad, yaw_rate_to_steer)
 
@@ -44,7 +44,7 @@ def test_drive_torque_fades_to_zero_at_top_speed_and_reverses_with_negative_thro
 
 
 def test_speed_control_drives_below_the_setpoint_brakes_above_and_holds_a_stopped_car():
-    g = CarControllerGains()
+    g = SpeedSteerGains()
     args = dict(dt_s=1 / 240, feedforward_n=np.full(3, 220.0), mass_kg=np.full(3, 1500.0),
                 wheel_radius_m=np.full(3, 0.4), max_drive_n_m=np.full(3, 3000.0), max_brake_n_m=np.full(3, 2000.0),
                 top_speed_m_s=np.full(3, 25.0), gains=g)
@@ -60,7 +60,7 @@ def test_speed_control_drives_below_the_setpoint_brakes_above_and_holds_a_stoppe
 
 
 def test_yaw_rate_to_steer_is_the_bicycle_model_when_the_rate_is_met():
-    steer = yaw_rate_to_steer(np.array([0.25]), np.array([0.25]), np.array([5.0]), L, CarControllerGains())
+    steer = yaw_rate_to_steer(np.array([0.25]), np.array([0.25]), np.array([5.0]), L, SpeedSteerGains())
     assert_allclose(steer, np.arctan(2.7 * 0.25 / 5.0))
 
 
