@@ -436,14 +436,15 @@ class Simulation:
         reg = self.definition.registry
         with self.ecs.active():
             have = {type(c): c for c in esper.components_for_entity(eid)}
-        out = {}
+        found = {}
         for entry in reg.all_entries():
             comp_type = getattr(entry.spec, "component", None)
             if comp_type is not None and comp_type in have:
-                out[entry.key] = have[comp_type]
+                found[entry.key] = have[comp_type]
         if MissionRuntime in have:
-            out["mission"] = have[MissionRuntime].spec
-        return out
+            found["mission"] = have[MissionRuntime].spec
+        in_file = [k for k in self.definition_of(name).components if k in found]    # world-file order first
+        return {k: found[k] for k in [*in_file, *(k for k in found if k not in in_file)]}
 
     def attach(self, name: str, key: str, **params: Any) -> Any:
         """Give vehicle or package ``name`` the component or sensor ``key`` (a world-file key: ``aero_drag``,
