@@ -41,6 +41,7 @@ from .components.body import FleetSlot, Identity, RigidBody
 from .config.schema import Each, FieldError, Ge, Gt, Le, Lt, MaxLen
 from .control.layers import (Airframe, AttitudeSetpoint, CarChassis, CarCommand, CarSetpoint, CarState, DroneState,
                              Layer, MotorCommand, PositionSetpoint, ThrustTorqueCommand)
+from .control.mixer import torque_per_unit_cmd_flu_n_m
 from .fleet import FleetState
 from .frames import (R_from_quat_xyzw, euler_rpy_from_quat_xyzw, quat_conjugate_xyzw, quat_multiply_xyzw,
                      quat_rotate_xyzw, quat_xyzw_from_euler_rpy, yaw_rad_from_quat_xyzw)
@@ -75,5 +76,5 @@ __all__ = [
     "MotorCommand", "MountedSensor", "Phase", "PositionSetpoint", "R_from_quat_xyzw", "RigidBody", "SensorPlugin",
     "SensorSpec", "SensorSystemBase", "StepContext", "SystemPlugin", "ThrustTorqueCommand", "euler_rpy_from_quat_xyzw",
     "quat_conjugate_xyzw", "quat_multiply_xyzw", "quat_rotate_xyzw", "quat_xyzw_from_euler_rpy", "row_of_vehicle",
-    "stack_params", "take_params", "vehicle_of_row", "yaw_rad_from_quat_xyzw",
+    "stack_params", "take_params", "torque_per_unit_cmd_flu_n_m", "vehicle_of_row", "yaw_rad_from_quat_xyzw",
 ]

@@ -15,7 +15,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from unetyemu_ecs.control.layers import Airframe, AttitudeSetpoint, DroneState
-from unetyemu_ecs.control.mixer import SPIN_REACTION_SIGN, mix_x_quad, motor_positions_flu_m
+from unetyemu_ecs.control.mixer import SPIN_REACTION_SIGN, mix_x_quad, motor_positions_flu_m, torque_per_unit_cmd_flu_n_m
 from unetyemu_ecs.frames import (R_from_quat_xyzw, euler_rpy_from_quat_xyzw, quat_multiply_xyzw,
                                  quat_xyzw_from_euler_rpy)
 from unetyemu_ecs.units import GRAVITY_M_S2
@@ -47,7 +47,9 @@ def airframe_of(names: list[str]) -> Airframe:
     n = len(names)
     return Airframe(mass_kg=m, inertia_flu_kg_m2=inertia, max_thrust_per_motor_n=f_max,
                     arm_length_m=np.array([PRESETS[k]["arm_m"] for k in names]),
-                    yaw_moment_coeff_m=np.full(n, YAW_MOMENT_COEFF_M),
+                    yaw_moment_coeff_m=np.full(n, YAW_MOMENT_COEFF_M), motor_tau_s=np.zeros(n),
+                    torque_per_cmd_flu_n_m=torque_per_unit_cmd_flu_n_m(f_max, [PRESETS[k]["arm_m"] for k in names],
+                                                                       np.full(n, YAW_MOMENT_COEFF_M)),
                     hover_thrust_frac=m * GRAVITY_M_S2 / (4.0 * f_max), max_tilt_rad=np.full(n, np.deg2rad(35.0)),
                     lim_climb_m_s=np.full(n, 8.0), lim_descent_m_s=np.full(n, 5.0),
                     lim_yaw_rate_rad_s=np.full(n, np.deg2rad(90.0)))

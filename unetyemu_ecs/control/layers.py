@@ -81,6 +81,8 @@ class Airframe:
     max_thrust_per_motor_n: np.ndarray   # F_max of each of the four motors
     arm_length_m: np.ndarray             # centre of mass -> motor axis
     yaw_moment_coeff_m: np.ndarray       # rotor reaction torque / thrust
+    motor_tau_s: np.ndarray              # first-order motor spin-up time constant (0: none)
+    torque_per_cmd_flu_n_m: np.ndarray   # (N, 3) torque a ThrustTorqueCommand.torque_cmd of 1 stands for
     hover_thrust_frac: np.ndarray        # m g / (4 F_max) of the unloaded drone
     max_tilt_rad: np.ndarray             # guidance limits (world-file ``guidance``)
     lim_climb_m_s: np.ndarray
@@ -127,7 +129,8 @@ class ThrustTorqueCommand:
 
     thrust_frac: np.ndarray        # collective thrust as a fraction of 4 F_max, in [0, 1]
     torque_cmd: np.ndarray         # (N, 3) roll, pitch, yaw commands in [-1, 1]: a command of 1 at
-    #                                mid collective drives one side's motors to F_max, the other to 0
+    #                                mid collective drives one side's motors to F_max, the other to 0,
+    #                                i.e. Airframe.torque_per_cmd_flu_n_m [N m] (control.mixer)
 
 
 @dataclass(frozen=True, slots=True)

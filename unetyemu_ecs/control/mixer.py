@@ -45,6 +45,21 @@ def motor_positions_flu_m(arm_length_m: np.ndarray) -> np.ndarray:
     return out
 
 
+def torque_per_unit_cmd_flu_n_m(max_thrust_per_motor_n: np.ndarray, arm_length_m: np.ndarray,
+                                yaw_moment_coeff_m: np.ndarray) -> np.ndarray:
+    """Torque (N, 3) [N m] about FLU x, y, z that a normalised torque command of 1 stands for.
+
+    The convention of :class:`~unetyemu_ecs.control.layers.ThrustTorqueCommand`, which every mixer
+    honours: a roll or pitch command of 1 at mid collective puts one side's two motors at F_max and
+    the other side's at 0, each at ``arm / sqrt 2`` from the axis: ``sqrt 2 F_max arm``; a yaw
+    command of 1 puts the two motors of one spin direction at F_max and the others at 0, reaction
+    torque ``kappa F`` each: ``2 kappa F_max``.
+    """
+    f_max = np.asarray(max_thrust_per_motor_n, dtype=float).reshape(-1)
+    rp = np.sqrt(2.0) * f_max * np.asarray(arm_length_m, dtype=float).reshape(-1)
+    return np.stack([rp, rp, 2.0 * np.asarray(yaw_moment_coeff_m, dtype=float).reshape(-1) * f_max], axis=1)
+
+
 def mix_x_quad(thrust_frac: np.ndarray, torque_cmd: np.ndarray) -> np.ndarray:
     """Return motor thrust fractions (N, 4) in [0, 1] (FL, FR, BR, BL).
 

@@ -32,6 +32,7 @@ import numpy as np
 from ..components.body import RigidBody
 from ..components.flight import GuidanceLimits, QuadrotorMotors
 from ..control.attitude import manual_to_setpoints
+from ..control.mixer import torque_per_unit_cmd_flu_n_m
 from ..control.layers import (Airframe, AttitudeSetpoint, DroneState, Layer, PositionSetpoint, ThrustTorqueCommand)
 from ..phases import Phase
 from ..plugins import ControllerPlugin
@@ -98,6 +99,9 @@ class DroneControllerSystem(ControllerSystem):
             max_thrust_per_motor_n=f_max,
             arm_length_m=np.array([m.arm_length_m for m in motors]),
             yaw_moment_coeff_m=np.array([m.yaw_moment_coeff_m for m in motors]),
+            motor_tau_s=np.array([m.motor_tau_s for m in motors], dtype=float),
+            torque_per_cmd_flu_n_m=torque_per_unit_cmd_flu_n_m(f_max, [m.arm_length_m for m in motors],
+                                                               [m.yaw_moment_coeff_m for m in motors]),
             hover_thrust_frac=mass * GRAVITY_M_S2 / (4.0 * f_max),
             max_tilt_rad=np.deg2rad([lim.max_tilt_deg for lim in limits]),
             lim_climb_m_s=np.array([lim.lim_climb_m_s for lim in limits], dtype=float),

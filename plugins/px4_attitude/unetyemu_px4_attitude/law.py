@@ -59,7 +59,6 @@ except ImportError as exc:  # pragma: no cover - depends on the environment
                       "environment that has unetyemu_ecs (.venv/bin/pip install ./plugins/px4_attitude from the "
                       f"simulator's repository) ({exc})") from exc
 
-SQRT2 = float(np.sqrt(2.0))
 I_FACTOR_RATE_RAD_S = float(np.deg2rad(400.0))   # PX4 rate_control.cpp: I gain fades out for larger rate errors
 
 
@@ -123,14 +122,10 @@ MEMORY = {
 def torque_per_cmd_flu_n_m(airframe: Airframe) -> np.ndarray:
     """Return the torque (N, 3) [N m] about FLU x, y, z that a torque command of 1 produces.
 
-    Built-in mixer convention: ``sqrt 2 F_max arm`` for roll and pitch, ``2 yaw_moment_coeff_m
-    F_max`` for yaw (derivation in the module docstring).
+    The layer's convention, given by the simulator in the airframe: ``sqrt 2 F_max arm`` for roll
+    and pitch, ``2 yaw_moment_coeff_m F_max`` for yaw (derivation in the module docstring).
     """
-    f_max = np.asarray(airframe.max_thrust_per_motor_n, dtype=float).reshape(-1)
-    arm = np.asarray(airframe.arm_length_m, dtype=float).reshape(-1)
-    kappa = np.asarray(airframe.yaw_moment_coeff_m, dtype=float).reshape(-1)
-    rp = SQRT2 * f_max * arm
-    return np.stack([rp, rp, 2.0 * kappa * f_max], axis=1)
+    return np.asarray(airframe.torque_per_cmd_flu_n_m, dtype=float).reshape(-1, 3)
 
 
 def _finite_or(x: np.ndarray, fill: float) -> np.ndarray:
