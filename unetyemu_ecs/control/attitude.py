@@ -27,7 +27,8 @@ MIN_COS_TILT = float(np.cos(np.deg2rad(60.0)))   # tilt compensation stops growi
 
 @dataclass(frozen=True, kw_only=True)
 class StabilizerGains:
-    """Layer-2 gains, the same default for every preset (world-file key ``stabilizer``).
+    """Gains of the built-in attitude controller ``angle_rate_pd`` (``controller: {attitude: {name:
+    angle_rate_pd, params: {...}}}``), the same default for every preset.
 
     Sources: pitch/roll 0.02 per degree and 0.2 are the paper's reference values (its Unity project); the
     vertical-speed PID is ours (in SI, on vertical acceleration), tuned for a 240 Hz loop to hold

@@ -19,7 +19,8 @@ from ..units import GRAVITY_M_S2, wrap_angle_rad
 
 @dataclass(frozen=True, kw_only=True)
 class GuidanceGains:
-    """Layer-3 gains (world-file key ``position_controller``); ours, tuned at 240 Hz for the presets."""
+    """Gains of the built-in position controller ``cascade_pid`` (``controller: {position: {name: cascade_pid,
+    params: {...}}}``); ours, tuned at 240 Hz for the presets."""
 
     # Ranges: gains within 1000 (defaults 0.3-2); accelerations within 10 g (100 m/s^2)
     gain_pos_p: Annotated[float, Gt(0.0), Le(1_000.0)] = 1.0          # [1/s] position error -> velocity

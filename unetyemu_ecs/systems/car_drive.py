@@ -1,6 +1,6 @@
 """STABILIZE phase for cars: the drive layer (speed and steering) of every car, by its chosen controller.
 
-The framework part of :class:`CarControllerSystem` in the paper's layer 2 for cars: PARKED holds
+The paper's layer 2 for cars, framework part: PARKED holds
 the brakes, MANUAL passes the teleop through (steering scaled by the speed-dependent limit), and
 the ROUTE and VELOCITY rows are handed to the car's drive controller (``controller: {drive: ...}``,
 default ``speed_pi_steer``) as a :class:`~unetyemu_ecs.control.layers.CarSetpoint`. Whatever the
