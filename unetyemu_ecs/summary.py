@@ -24,14 +24,14 @@ def build_summary(sim: Simulation, stats: RunStats) -> dict[str, Any]:
             "start_enu_m": [round(float(x), 3) for x in ent.pos_enu_m],
             "final_enu_m": [round(float(x), 3) for x in sim.fleet.pos_enu_m[row]],
             "distance_m": round(float(sim.fleet.odometer_m[row]), 3),
-            "impacts": int(sim.fleet.impacts[row]) if hasattr(sim.fleet, "impacts") else 0,
+            "impacts": int(sim.fleet.impacts[row]),
         }
-        if ent.kind == "quadrotor" and hasattr(sim.fleet, "energy_used_j"):
+        if ent.kind == "quadrotor":
             status = sim.mission_status(ent.name)
             item["mission"] = status
             item["energy_used_wh"] = round(float(sim.fleet.energy_used_j[row]) / 3600.0, 4)
             item["soc_frac"] = round(float(sim.fleet.soc_frac[row]), 5)
-        if ent.kind == "car" and hasattr(sim.fleet, "drive_mode"):
+        if ent.kind == "car":
             item["drive"] = sim.drive_status(ent.name)
         entities.append(item)
     return {

@@ -18,13 +18,13 @@ import zlib
 from dataclasses import dataclass, field
 from typing import Annotated, Any, ClassVar
 
-import esper
 import numpy as np
 
-from ..components.body import FleetSlot, Identity
+from ..components.body import Identity
 from ..config.limits import MAX_MOUNT_M, MAX_TOPIC_LEN, Deg, SensorRate
 from ..config.schema import FieldError, Ge, Le, MaxLen, NonEmpty
 from ..frames import quat_xyzw_from_euler_rpy
+from ..systems.fleet_system import FleetSystem
 from ..world import StepContext
 
 
@@ -97,7 +97,8 @@ class SensorOutputs:
 
 @dataclass
 class MountedSensor:
-    """One sensor instance as its system sees it (gathered when the fleet changes)."""
+    """One sensor instance as its system sees it (gathered again whenever the ECS or the fleet changes;
+    ``next_due_s`` stays with the sensor's entity across gathers)."""
 
     entity: int
     row: int
@@ -109,33 +110,41 @@ class MountedSensor:
     next_due_s: float = 0.0
 
 
-class SensorSystemBase(esper.Processor):
+class SensorSystemBase(FleetSystem):
     """Gathering, scheduling and noise streams for a SENSORS-phase system of one sensor kind.
 
     Subclasses set ``spec_type``, ``key`` (the world-file key), ``topic_suffix``, and ``link`` only
     when the spec has no frame of its own (``SensorSpec.LINK``), and implement
-    ``measure(ctx, due, time_s)`` for the list of sensors due this step.
+    ``measure(ctx, due, time_s)`` for the list of sensors due this step. The sensors are the
+    vehicles carrying an :class:`~unetyemu_ecs.components.body.Identity` and a ``spec_type``
+    component (``requires``): one added after spawn starts measuring on the next step, one removed
+    stops. A subclass that prepares per-sensor data extends :meth:`gather` (``super().gather(ctx)``
+    first, then ``self.sensors``).
     """
 
     spec_type: type = SensorSpec
     key = "sensor"
     topic_suffix = "sensor"
     link = "base_link"
+    requires = (Identity, SensorSpec)
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        cls.requires = (Identity, cls.spec_type)
 
     def __init__(self) -> None:
-        self._seen_version = -1
+        super().__init__()
         self.sensors: list[MountedSensor] = []
         self._rng: dict[str, np.random.Generator] = {}
 
     def gather(self, ctx: StepContext) -> None:
-        found = []
-        for ent, (slot, ident, spec) in esper.get_components(FleetSlot, Identity, self.spec_type):
+        due_of = {s.entity: s.next_due_s for s in self.sensors}      # a sensor keeps its schedule
+        self.sensors = []
+        for row, ent, ident, spec in zip(self.rows.tolist(), self.entities.tolist(), *self.components):
             topic = spec.topic or f"/{ident.name}/{self.topic_suffix}"
             frame = spec.frame_name(ident.name, self.link)
-            old = next((s for s in self.sensors if s.entity == ent), None)
-            found.append(MountedSensor(ent, slot.row, ident.name, ident.kind, spec, topic, frame,
-                                       old.next_due_s if old else 0.0))
-        self.sensors = sorted(found, key=lambda s: s.row)
+            self.sensors.append(MountedSensor(ent, row, ident.name, ident.kind, spec, topic, frame,
+                                              due_of.get(ent, 0.0)))
 
     def rng_for(self, ctx: StepContext, sensor: MountedSensor) -> np.random.Generator:
         """This sensor's own noise stream: seeded by the world seed and the sensor's name, so that
@@ -148,12 +157,7 @@ class SensorSystemBase(esper.Processor):
             self._rng[name] = gen
         return gen
 
-    def process(self, ctx: StepContext) -> None:
-        if ctx.fleet.version != self._seen_version:
-            self.gather(ctx)
-            self._seen_version = ctx.fleet.version
-        if not self.sensors:
-            return
+    def update(self, ctx: StepContext) -> None:
         time_s = ctx.sim_time_s + ctx.dt_s                 # measured at the end of this step
         eps = 1e-9
         due = [s for s in self.sensors if time_s + eps >= s.next_due_s]

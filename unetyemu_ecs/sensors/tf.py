@@ -8,6 +8,9 @@
 - ``/tf`` (every ``1 / TF_HZ`` s of sim time): ``<v>/odom -> <v>/base_link`` of every vehicle, in one
   message.
 
+The static tree follows the world: a vehicle spawned or removed, or a sensor added to or removed
+from a vehicle after spawn, sends ``/tf_static`` again on the next step.
+
 The messages go to the sensor outputs under vehicle ``""`` and keys ``tf`` / ``tf_static``
 (:meth:`unetyemu_ecs.app.Simulation.transforms`).
 """
@@ -19,9 +22,10 @@ from typing import Any
 import esper
 import numpy as np
 
-from ..components.body import FleetSlot, Identity
+from ..components.body import Identity
 from ..frames import quat_xyzw_from_R
 from ..phases import Phase
+from ..systems.fleet_system import FleetSystem
 from ..world import StepContext
 from .base import SensorSample, SensorSpec
 from .camera import R_LINK_OPTICAL
@@ -36,32 +40,40 @@ def _transform(time_s: float, parent: str, child: str, xyz: np.ndarray, q_xyzw: 
              transform=Transform(translation=vector3(xyz), rotation=quaternion(q_xyzw)))
 
 
-class TransformSystem(esper.Processor):
-    """Publishes /tf_static once and /tf at TF_HZ for every vehicle. Phase: OUTPUTS. Always present."""
+class TransformSystem(FleetSystem):
+    """Publishes /tf_static (at the first step, and again whenever the tree changes) and /tf at TF_HZ
+    for every vehicle. Phase: OUTPUTS. Always present."""
 
     phase = Phase.OUTPUTS
     order = 10
+    requires = (Identity,)
 
     def __init__(self) -> None:
+        super().__init__()
         self._static_sent = False
         self._next_s = 0.0
-        self._seen_version = -1
         self._vehicles: list[tuple[int, str]] = []
+        self._static: list[tuple[str, str, tuple[float, ...], tuple[float, ...]]] = []  # parent, child, xyz, q_xyzw
 
-    def process(self, ctx: StepContext) -> None:
-        f = ctx.fleet
-        if f.version != self._seen_version:
-            self._vehicles = sorted((slot.row, ident.name) for _, (slot, ident)
-                                    in esper.get_components(FleetSlot, Identity) if ident.kind != "package")
-            self._seen_version = f.version
-            self._static_sent = False                    # new vehicles: send the static tree again
+    def gather(self, ctx: StepContext) -> None:
+        vehicles = [(row, int(ent), ident.name) for row, ent, ident in zip(self.rows.tolist(), self.entities,
+                                                                          self.components[0])
+                    if ident.kind != "package"]
+        self._vehicles = [(row, name) for row, _, name in vehicles]
+        static = self._static_tree(vehicles)
+        if static != self._static:                     # new vehicles or sensors: send the static tree again
+            self._static = static
+            self._static_sent = False
+
+    def update(self, ctx: StepContext) -> None:
         if not self._vehicles:
             return
+        f = ctx.fleet
         time_s = ctx.sim_time_s + ctx.dt_s
         TFMessage = msg_type("tf2_msgs/msg/TFMessage")
         if not self._static_sent:
-            ctx.services.sensors.put(SensorSample(time_s, "", "tf_static", "/tf_static",
-                                                  TFMessage(transforms=self._static_tree(time_s))))
+            tfs = [_transform(time_s, parent, child, np.array(xyz), np.array(q)) for parent, child, xyz, q in self._static]
+            ctx.services.sensors.put(SensorSample(time_s, "", "tf_static", "/tf_static", TFMessage(transforms=tfs)))
             self._static_sent = True
         if time_s + 1e-9 >= self._next_s:
             self._next_s += (np.floor((time_s + 1e-9 - self._next_s) * TF_HZ) + 1) / TF_HZ
@@ -69,22 +81,23 @@ class TransformSystem(esper.Processor):
                    for row, name in self._vehicles]
             ctx.services.sensors.put(SensorSample(time_s, "", "tf", "/tf", TFMessage(transforms=tfs)))
 
-    def _static_tree(self, time_s: float) -> list[Any]:
+    @staticmethod
+    def _static_tree(vehicles: list[tuple[int, int, str]]) -> list[tuple[str, str, tuple[float, ...], tuple[float, ...]]]:
+        """(parent, child, xyz, q_xyzw) of every static transform of ``vehicles`` (row, entity, name)."""
         out = []
-        q_identity = np.array([0.0, 0.0, 0.0, 1.0])
-        q_optical = np.asarray(quat_xyzw_from_R(R_LINK_OPTICAL)).reshape(4)
-        by_name = {ident.name: ent for ent, ident in esper.get_component(Identity)}
-        for _, name in self._vehicles:
-            out.append(_transform(time_s, "map", f"{name}/odom", np.zeros(3), q_identity))
-            for comp in esper.components_for_entity(by_name[name]):
+        zero, q_identity = (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)
+        q_optical = tuple(float(v) for v in np.asarray(quat_xyzw_from_R(R_LINK_OPTICAL)).reshape(4))
+        for _, ent, name in vehicles:
+            out.append(("map", f"{name}/odom", zero, q_identity))
+            for comp in esper.components_for_entity(ent):
                 if not isinstance(comp, SensorSpec) or not comp.LINK:
                     continue
                 frame = comp.frame_name(name)                  # what its messages are stamped with
                 link = f"{name}/{comp.LINK}" if comp.OPTICAL else frame
-                out.append(_transform(time_s, f"{name}/base_link", link, np.asarray(comp.mount_xyz_m, float),
-                                      comp.mount_quat_xyzw()))
+                out.append((f"{name}/base_link", link, tuple(float(v) for v in comp.mount_xyz_m),
+                            tuple(float(v) for v in comp.mount_quat_xyzw())))
                 if comp.OPTICAL:
-                    out.append(_transform(time_s, link, frame, np.zeros(3), q_optical))
+                    out.append((link, frame, zero, q_optical))
         return out
 
 

@@ -3,8 +3,7 @@
 - :class:`CarCommandSystem` (COMMANDS): targets, routes, teleop, cmd_vel, arm/park; the world
   file's ``route`` at t = 0.
 - :class:`CarGuidanceSystem` (GUIDANCE): pure pursuit on the route and its speed profile.
-- :class:`CarControllerSystem` (STABILIZE): speed PI -> throttle/brake, course -> steering, with the
-  speed-dependent steering limit and the steering slew rate; teleop passes through.
+- the drive layer (STABILIZE) is in :mod:`.car_drive`: the car's chosen drive controller.
 - :class:`CarActuationSystem` (ACTUATE): suspension forces, steering angles (Ackermann), rear-wheel
   drive torque and brakes applied to each car's PyBullet body.
 """
@@ -18,8 +17,7 @@ import numpy as np
 
 from ..components.body import Identity, RigidBody
 from ..components.car import CarBody, CarDynamics, CarRoute
-from ..control.car import (CarControllerGains, ackermann_angles, bicycle_limit_rad, drive_torque_n_m, pure_pursuit_steer,
-                           route_speed_sp, speed_to_throttle_brake, steer_limit_rad, yaw_rate_to_steer)
+from ..control.car import CarGuidanceParams, ackermann_angles, drive_torque_n_m, pure_pursuit_steer, route_speed_sp
 from ..control.pursuit import pure_pursuit
 from ..frames import R_from_quat_xyzw
 from ..phases import Phase
@@ -27,9 +25,9 @@ from ..physics.car_body import CarCommander, read_suspension
 from ..transport.bus import Arm, CmdVel, Drive, DriveRoute, SetTarget
 from ..units import GRAVITY_M_S2
 from ..world import StepContext
-from .car_state import CarPath, DriveMode, declare_car_arrays, set_path
+from .car_state import CarPath, DriveMode, set_path
 from .commands import claim, hold_until_s, lapsed_rows, warn_if_obstructed
-from .rows import gather_rows, stack_params
+from .fleet_system import FleetSystem, stack_params
 
 STOPPED_SPEED_M_S = 0.2        # a route is done when the car is this slow within the arrival radius
 ASLEEP_AFTER_S = 3.0           # a parked car still for this long is asleep in Bullet (its 2 s deactivation time)
@@ -37,8 +35,8 @@ STILL_M_S = 0.005              # ... where "still" means base speed and turn rat
 ROUTE_FOLLOWING_HZ = 60.0      # pure pursuit and the speed profile (the speed and steering loops run every step)
 
 
-def _gains(ent: int) -> CarControllerGains:
-    return esper.try_component(ent, CarControllerGains) or CarControllerGains()
+def _gains(ent: int) -> CarGuidanceParams:
+    return esper.try_component(ent, CarGuidanceParams) or CarGuidanceParams()
 
 
 class CarCommandSystem(esper.Processor):
@@ -57,7 +55,6 @@ class CarCommandSystem(esper.Processor):
 
     def process(self, ctx: StepContext) -> None:
         f = ctx.fleet
-        declare_car_arrays(f)
         for ent, route in esper.get_component(CarRoute):
             if ent not in self._started:
                 self._started.add(ent)
@@ -153,25 +150,10 @@ class CarCommandSystem(esper.Processor):
 
 
 def _enter_mode(ctx: StepContext, ent: int, row: int, mode: DriveMode) -> None:
-    """Switch mode with a bumpless start of the speed integrator (the current throttle/brake continue)."""
+    """Switch drive mode (the drive controller restarts bumplessly: systems/car_drive.py)."""
     f = ctx.fleet
     if f.drive_mode[row] == mode:
         return
-    if mode in (DriveMode.ROUTE, DriveMode.VELOCITY):
-        dyn = esper.component_for_entity(ent, CarDynamics)
-        gains = _gains(ent)
-        mass = esper.component_for_entity(ent, RigidBody).mass_kg
-        v = float(f.car_speed_m_s[row])
-        direction = math.copysign(1.0, v) if abs(v) > 0.3 else 1.0
-        drive_n = float(drive_torque_n_m(np.array([f.car_throttle[row]]), np.array([v]),
-                                         np.array([dyn.max_drive_torque_n_m]), np.array([dyn.top_speed_m_s]))[0]
-                        ) / dyn.wheel_radius_m
-        brake_n = float(f.car_brake[row]) * 4.0 * dyn.max_brake_torque_n_m / dyn.wheel_radius_m
-        acc_now = (drive_n - direction * brake_n * (abs(v) > 0.3)) / mass
-        speed_sp = v if mode == DriveMode.ROUTE else float(f.cmd_vel[row, 0])
-        integral = (acc_now - gains.gain_speed_p * (speed_sp - v)) / max(gains.gain_speed_i, 1e-9)
-        lim = gains.lim_speed_int_m_s2 / max(gains.gain_speed_i, 1e-9)
-        f.car_speed_int[row] = float(np.clip(integral, -lim, lim)) if gains.gain_speed_i > 0 else 0.0
     if mode != DriveMode.ROUTE:
         set_path(f, row, None)
     f.drive_mode[row] = mode
@@ -179,28 +161,23 @@ def _enter_mode(ctx: StepContext, ent: int, row: int, mode: DriveMode) -> None:
     ctx.services.note(ctx.sim_time_s, name, f"drive mode {mode.name.lower()}")
 
 
-class _CarRows:
-    """Rows and stacked parameters of every car; re-gathered when the fleet changes."""
+class CarFleetSystem(FleetSystem):
+    """A system over every car: its rows and stacked parameters, gathered again when the ECS changes.
 
-    def __init__(self) -> None:
-        self.version = -1
-        self.rows = np.empty(0, dtype=np.intp)
+    After a gather: ``dyn`` (:class:`CarDynamics`, (M,) fields), ``gains``
+    (:class:`CarGuidanceParams`, (M,) fields; the defaults where a car has none), ``mass`` (M,) [kg],
+    ``bodies`` and ``joints`` (PyBullet body ids and wheel joints, per car).
+    """
 
-    def refresh(self, ctx: StepContext) -> bool:
-        f = ctx.fleet
-        if f.version == self.version:
-            return self.rows.size > 0
-        declare_car_arrays(f)
-        self.rows, dyns = gather_rows(CarDynamics)
-        ents = f.entity[self.rows]
-        self.dyn = stack_params(dyns, CarDynamics) if dyns else None
-        self.gains = stack_params([_gains(int(e)) for e in ents], CarControllerGains) if dyns else None
-        self.mass = np.array([esper.component_for_entity(int(e), RigidBody).mass_kg for e in ents])
-        self.bodies = [int(b) for b in f.body_id[self.rows]]
-        self.joints = [esper.component_for_entity(int(e), CarBody).joints for e in ents]
-        self.entities = [int(e) for e in ents]
-        self.version = f.version
-        return self.rows.size > 0
+    requires = (CarDynamics,)
+
+    def gather(self, ctx: StepContext) -> None:
+        ents = self.entities.tolist()
+        self.dyn = stack_params(self.components[0], CarDynamics)
+        self.gains = stack_params([_gains(e) for e in ents], CarGuidanceParams)
+        self.mass = np.array([esper.component_for_entity(e, RigidBody).mass_kg for e in ents])
+        self.bodies = [int(b) for b in ctx.fleet.body_id[self.rows]]
+        self.joints = [esper.component_for_entity(e, CarBody).joints for e in ents]
 
 
 def _heading(quat_xyzw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -209,7 +186,7 @@ def _heading(quat_xyzw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return fwd, np.arctan2(fwd[:, 1], fwd[:, 0])
 
 
-class CarGuidanceSystem(esper.Processor):
+class CarGuidanceSystem(CarFleetSystem):
     """Pure pursuit along each ROUTE-mode car's path and its speed profile. Phase: GUIDANCE (order 20).
 
     Look-ahead ``max(lead_min, lead_time * speed)``; speed setpoint: the route speed, limited so the
@@ -223,14 +200,12 @@ class CarGuidanceSystem(esper.Processor):
     order = 20
 
     def __init__(self) -> None:
-        self._cars = _CarRows()
+        super().__init__()
         self._key: tuple = ()
         self._packed: tuple = ()
 
-    def process(self, ctx: StepContext) -> None:
-        if not self._cars.refresh(ctx):
-            return
-        f, c = ctx.fleet, self._cars
+    def update(self, ctx: StepContext) -> None:
+        f, c = ctx.fleet, self
         sel = np.flatnonzero(f.drive_mode[c.rows] == DriveMode.ROUTE)
         if sel.size == 0:
             return
@@ -260,7 +235,7 @@ class CarGuidanceSystem(esper.Processor):
                 laps = max(laps, p.laps_done(int(seg[k])))
             if laps != f.path_laps[r[k]]:
                 f.path_laps[r[k]] = laps
-                name = esper.component_for_entity(c.entities[sel[k]], Identity).name
+                name = esper.component_for_entity(int(c.entities[sel[k]]), Identity).name
                 ctx.services.note(ctx.sim_time_s, name, f"route lap {laps} done")
         f.path_segment[r] = seg
 
@@ -281,7 +256,7 @@ class CarGuidanceSystem(esper.Processor):
         f.car_speed_sp_m_s[r] = speed_sp
         f.car_steer_sp_rad[r] = np.where(at_end, f.car_steer_rad[r], steer)
         for k in np.flatnonzero(done):
-            ent = c.entities[sel[k]]
+            ent = int(c.entities[sel[k]])
             name = esper.component_for_entity(ent, Identity).name
             laps = len(paths[k].lap_ends)
             if laps:
@@ -318,66 +293,7 @@ def _along(pos: np.ndarray, route: np.ndarray, seg: np.ndarray) -> np.ndarray:
     return t * length
 
 
-class CarControllerSystem(esper.Processor):
-    """Layer 2 for cars: throttle, brake and steering for every car in one pass. Phase: STABILIZE (order 20).
-
-    PARKED: brake 1. MANUAL: teleop passes through (steering scaled by the speed-dependent limit).
-    VELOCITY: speed PI to ``cmd_vel[0]``, steering from the yaw rate ``cmd_vel[1]``. ROUTE: speed
-    PI to the route's setpoint, steering from pure pursuit. The steering angle is limited so that
-    the inner front wheel stays within ``max_steer_deg`` at rest, less at speed (falling linearly to
-    ``steer_scale_at_50_m_s`` of it at 50 m/s), and slewed at ``max_steer_rate_deg_s``. Also writes
-    car_speed_m_s.
-    """
-
-    phase = Phase.STABILIZE
-    order = 20
-
-    def __init__(self) -> None:
-        self._cars = _CarRows()
-
-    def process(self, ctx: StepContext) -> None:
-        if not self._cars.refresh(ctx):
-            return
-        f, c = ctx.fleet, self._cars
-        r = c.rows
-        dyn, gains = c.dyn, c.gains
-        fwd, _ = _heading(f.quat_enu_flu_xyzw[r])
-        v = np.einsum("ni,ni->n", f.vel_enu_m_s[r], fwd)
-        f.car_speed_m_s[r] = v
-        mode = f.drive_mode[r]
-        yaw_rate = f.rate_flu_rad_s[r, 2]
-
-        speed_sp = np.where(mode == DriveMode.VELOCITY, f.cmd_vel[r, 0],
-                            np.where(mode == DriveMode.ROUTE, f.car_speed_sp_m_s[r], 0.0))
-        rolling_n = dyn.rolling_resistance_coeff * c.mass * GRAVITY_M_S2
-        throttle, brake, integ = speed_to_throttle_brake(
-            speed_sp, v, f.car_speed_int[r], ctx.dt_s, rolling_n, c.mass, dyn.wheel_radius_m,
-            dyn.max_drive_torque_n_m, dyn.max_brake_torque_n_m, dyn.top_speed_m_s, gains)
-        wheel_limit = steer_limit_rad(v, np.deg2rad(dyn.max_steer_deg), dyn.steer_scale_at_50_m_s)
-        limit = bicycle_limit_rad(wheel_limit, dyn.wheelbase_m, dyn.track_m)     # inner wheel at the limit
-        steer_sp = np.where(mode == DriveMode.VELOCITY,
-                            yaw_rate_to_steer(f.cmd_vel[r, 1], yaw_rate, v, dyn.wheelbase_m, gains),
-                            np.where(mode == DriveMode.ROUTE, f.car_steer_sp_rad[r], 0.0))
-        manual = mode == DriveMode.MANUAL
-        cmd = f.drive_cmd[r]
-        throttle = np.where(manual, cmd[:, 0], throttle)
-        brake = np.where(manual, cmd[:, 1], brake)
-        steer_sp = np.where(manual, cmd[:, 2] * limit, steer_sp)
-        parked = mode == DriveMode.PARKED
-        throttle = np.where(parked, 0.0, throttle)
-        brake = np.where(parked, 1.0, brake)
-        controlled = (mode == DriveMode.VELOCITY) | (mode == DriveMode.ROUTE)
-        f.car_speed_int[r] = np.where(controlled, integ, f.car_speed_int[r])
-
-        steer_sp = np.clip(steer_sp, -limit, limit)
-        slew = np.deg2rad(dyn.max_steer_rate_deg_s) * ctx.dt_s
-        prev = f.car_steer_rad[r]
-        f.car_steer_rad[r] = prev + np.clip(steer_sp - prev, -slew, slew)
-        f.car_throttle[r] = throttle
-        f.car_brake[r] = brake
-
-
-class CarActuationSystem(esper.Processor):
+class CarActuationSystem(CarFleetSystem):
     """Apply suspension, steering, drive and brakes to every car body. Phase: ACTUATE (order 30).
 
     Suspension per wheel: ``-k x - c x' - m g / 4`` along the chassis z axis (static rest at x = 0).
@@ -391,30 +307,36 @@ class CarActuationSystem(esper.Processor):
     order = 30
 
     def __init__(self) -> None:
-        self._cars = _CarRows()
+        super().__init__()
         self._commanders: dict[int, CarCommander] = {}      # body id -> commander
-        self._was_parked = np.zeros(0, dtype=bool)
+        self._was_parked = np.zeros(0, dtype=bool)          # per row of ``rows``: parked last step
         self._still_s = np.zeros(0)                        # how long each car has been parked and still [s]
+        self._gathered = np.empty(0, dtype=np.int64)       # the entities those two arrays belong to
 
-    def process(self, ctx: StepContext) -> None:
-        if not self._cars.refresh(ctx):
-            return
-        f, c = ctx.fleet, self._cars
+    def gather(self, ctx: StepContext) -> None:
+        super().gather(ctx)
+        # carry each car's sleep state over by entity; a new car starts as "was parked, not still"
+        before = {int(e): k for k, e in enumerate(self._gathered)}
+        old = np.array([before.get(int(e), -1) for e in self.entities], dtype=np.intp)
+        self._was_parked = _carry_over(self._was_parked, old, True)
+        self._still_s = _carry_over(self._still_s, old, 0.0)
+        self._gathered = self.entities.copy()
+        cid = ctx.physics.id
+        self._car_commanders = [self._commanders.get(b) or self._commanders.setdefault(b, CarCommander(cid, b, j))
+                                 for b, j in zip(self.bodies, self.joints)]
+
+    def update(self, ctx: StepContext) -> None:
+        f, c = ctx.fleet, self
         r = c.rows
         dyn = c.dyn
         cid = ctx.physics.id
-        commanders = [self._commanders.get(b) or self._commanders.setdefault(b, CarCommander(cid, b, j))
-                      for b, j in zip(c.bodies, c.joints)]
+        commanders = self._car_commanders
         parked = f.drive_mode[r] == DriveMode.PARKED
-        if self._was_parked.shape != parked.shape:
-            self._was_parked = np.ones_like(parked)
         for i in np.flatnonzero(self._was_parked != parked):
             commanders[i].allow_sleep(bool(parked[i]))     # only a parked car may sleep
         self._was_parked = parked
         still = parked & (np.linalg.norm(f.vel_enu_m_s[r], axis=1) < STILL_M_S) & \
             (np.linalg.norm(f.rate_enu_rad_s[r], axis=1) < STILL_M_S)
-        if self._still_s.shape != still.shape:
-            self._still_s = np.zeros(still.shape)
         self._still_s = np.where(still, self._still_s + ctx.dt_s, 0.0)
         asleep = self._still_s > ASLEEP_AFTER_S            # Bullet does not integrate it: nothing to send
         drive = drive_torque_n_m(f.car_throttle[r], f.car_speed_m_s[r], dyn.max_drive_torque_n_m, dyn.top_speed_m_s)
@@ -432,4 +354,12 @@ class CarActuationSystem(esper.Processor):
             commanders[i].apply(spring, steer[i], wheel_torque, np.full(4, brake[i]))
 
 
-__all__ = ["CarActuationSystem", "CarCommandSystem", "CarControllerSystem", "CarGuidanceSystem"]
+def _carry_over(values: np.ndarray, old_index: np.ndarray, fill: object) -> np.ndarray:
+    """``values`` re-indexed to new rows: ``values[old_index[k]]``, or ``fill`` where ``old_index[k]`` < 0."""
+    out = np.full(old_index.shape, fill, dtype=values.dtype)
+    known = old_index >= 0
+    out[known] = values[old_index[known]]
+    return out
+
+
+__all__ = ["CarActuationSystem", "CarCommandSystem", "CarFleetSystem", "CarGuidanceSystem"]

@@ -103,7 +103,11 @@ CAR_ARRAYS: dict[str, tuple[tuple[int, ...], type, float]] = {
 
 
 def declare_car_arrays(fleet: FleetState) -> None:
-    """Declare every car array on ``fleet`` (idempotent), plus the per-row path objects."""
+    """Declare every car array on ``fleet`` (idempotent), plus the per-row path objects.
+
+    Called once when a simulation is built (:func:`~.blackboard.declare_shared_arrays`); systems
+    never declare them.
+    """
     for name, (tail, dtype, fill) in CAR_ARRAYS.items():
         fleet.declare(name, tail, dtype, fill)
     fleet.declare("car_path", (), object, None)

@@ -22,7 +22,7 @@ from ..phases import Phase
 from ..scene.obstacles import buildings_on_segment
 from ..transport.bus import Arm, CmdVel, LoadMission, SetTarget, Teleop
 from ..world import StepContext
-from .flight_state import FlightMode, Route, declare_flight_arrays, set_route
+from .flight_state import FlightMode, Route, set_route
 
 
 class InboxSystem(esper.Processor):
@@ -85,7 +85,6 @@ class FlightCommandSystem(esper.Processor):
 
     def process(self, ctx: StepContext) -> None:
         f = ctx.fleet
-        declare_flight_arrays(f)
         for ent, msg in claim(ctx, GuidanceLimits):
             self._stop_script(ctx, ent, msg)
             error = self._apply(ctx, ent, msg)
@@ -166,8 +165,7 @@ class FlightCommandSystem(esper.Processor):
             f.yaw_rate_cmd_rad_s[row] = msg.yaw_rate_rad_s
             if f.flight_mode[row] != FlightMode.VELOCITY:
                 _cancel_mission(ctx, ent, "cmd_vel")
-                f.flight_mode[row] = FlightMode.VELOCITY
-                f.vel_int_m_s[row] = 0.0
+                f.flight_mode[row] = FlightMode.VELOCITY    # the position layer restarts its memory
             return ""
         if isinstance(msg, LoadMission):
             if esper.has_component(ent, MissionRuntime):

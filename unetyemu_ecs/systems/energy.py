@@ -7,64 +7,59 @@ thrust each motor actually applied this step. A disarmed drone has zero thrust a
 
 from __future__ import annotations
 
-import esper
 import numpy as np
 
 from ..components.flight import EnergyModel
 from ..control.energy import rotor_power_w
 from ..phases import Phase
 from ..world import StepContext
-from .flight_state import declare_flight_arrays
-from .rows import gather_rows
+from .fleet_system import FleetSystem, stack_params
 
 J_PER_WH = 3600.0
 
 
-class EnergySystem(esper.Processor):
+class EnergySystem(FleetSystem):
     """Integrate power into battery energy for every drone with an :class:`EnergyModel`.
 
     Phase: PAYLOAD_ENERGY (order 50). Reads: fleet.motor_thrust_n, charging, charge_power_w.
     Writes: fleet.power_w, power_filt_w, energy_j, energy_used_j, soc_frac, remaining_time_s,
     low_battery, motors_enabled (False once the battery is empty).
+
+    A drone's battery starts at ``initial_soc_frac`` the first time the system sees it; an
+    :class:`EnergyModel` replaced later (other rotors, avionics power, capacity) changes the power
+    from the next step on and keeps the energy the battery holds.
     """
 
     phase = Phase.PAYLOAD_ENERGY
     order = 50
+    requires = (EnergyModel,)
 
     def __init__(self) -> None:
-        self._seen_version = -1
-        self._rows = np.empty(0, dtype=np.intp)
-        self._initialised: set[int] = set()
+        super().__init__()
+        self._initialised: set[int] = set()      # entities whose battery has been filled
 
-    def _gather(self, ctx: StepContext) -> None:
+    def gather(self, ctx: StepContext) -> None:
         f = ctx.fleet
-        declare_flight_arrays(f)
-        self._rows, comps = gather_rows(EnergyModel)
-        self._area = np.array([np.pi * c.rotor_radius_m ** 2 for c in comps])
-        self._rho = np.array([c.air_density_kg_m3 for c in comps])
-        self._eta = np.array([c.efficiency for c in comps])
-        self._p0 = np.array([c.p0_w for c in comps])
-        self._cap_j = np.array([c.battery_wh * J_PER_WH for c in comps])
-        self._low = np.array([c.low_battery_land_frac for c in comps])
-        self._tau = np.array([c.remaining_time_tau_s for c in comps])
-        entities = f.entity[self._rows]
-        for k, (row, c) in enumerate(zip(self._rows.tolist(), comps)):
-            if int(entities[k]) not in self._initialised:       # a new drone: full (or initial) battery
-                f.energy_j[row] = c.initial_soc_frac * self._cap_j[k]
+        p = stack_params(self.components[0], EnergyModel)
+        self._area = np.pi * p.rotor_radius_m ** 2
+        self._rho = p.air_density_kg_m3
+        self._eta = p.efficiency
+        self._p0 = p.p0_w
+        self._cap_j = p.battery_wh * J_PER_WH
+        self._low = p.low_battery_land_frac
+        self._tau = p.remaining_time_tau_s
+        for k, (row, ent) in enumerate(zip(self.rows.tolist(), self.entities.tolist())):
+            if ent not in self._initialised:       # a new drone: full (or initial) battery
+                f.energy_j[row] = p.initial_soc_frac[k] * self._cap_j[k]
                 f.energy_used_j[row] = 0.0
-                f.soc_frac[row] = c.initial_soc_frac
-                f.power_filt_w[row] = c.p0_w
-                f.charge_power_w[row] = c.charge_power_w
-                self._initialised.add(int(entities[k]))
+                f.soc_frac[row] = p.initial_soc_frac[k]
+                f.power_filt_w[row] = p.p0_w[k]
+                f.charge_power_w[row] = p.charge_power_w[k]
+                self._initialised.add(ent)
 
-    def process(self, ctx: StepContext) -> None:
+    def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
-        if f.version != self._seen_version:
-            self._gather(ctx)
-            self._seen_version = f.version
-        r = self._rows
-        if r.size == 0:
-            return
+        r = self.rows
         power = rotor_power_w(f.motor_thrust_n[r], self._rho, self._area, self._eta).sum(axis=1) + self._p0
         f.power_w[r] = power
         a = 1.0 - np.exp(-ctx.dt_s / self._tau)

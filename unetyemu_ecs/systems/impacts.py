@@ -34,6 +34,10 @@ class ImpactMonitorSystem(esper.Processor):
     Phase: STATE (after the readback, order 50). Reads: all PyBullet contact points (one call per
     step), fleet velocities. Writes: ``fleet.impacts`` (count per row), ``services.events`` (one
     line per impact naming both sides, the point and the speed).
+
+    Not a :class:`~unetyemu_ecs.systems.fleet_system.FleetSystem`: it watches every body, whatever
+    its components, and what it keeps per row (body id, name, last velocity) changes only when rows
+    are allocated or freed, so ``fleet.version`` alone tells it when to look again.
     """
 
     phase = Phase.STATE
@@ -50,7 +54,6 @@ class ImpactMonitorSystem(esper.Processor):
 
     def _refresh(self, ctx: StepContext) -> None:
         f = ctx.fleet
-        f.declare("impacts", (), np.int64, 0)
         rows = f.rows
         self._row_of_body = {int(f.body_id[r]): int(r) for r in rows}
         names = {ent: ident.name for ent, ident in esper.get_component(Identity)}

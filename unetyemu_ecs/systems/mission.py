@@ -20,7 +20,7 @@ from ..components.mission import MissionRuntime
 from ..frames import yaw_rad_from_quat_xyzw
 from ..phases import Phase
 from ..world import StepContext
-from .flight_state import FlightMode, PayloadRequest, PayloadResult, Route, declare_flight_arrays, set_route
+from .flight_state import FlightMode, PayloadRequest, PayloadResult, Route, set_route
 
 LANDED_SPEED_M_S = 0.25        # touching something and slower than this ...
 LANDED_HOLD_S = 0.5            # ... for this long counts as landed
@@ -35,7 +35,7 @@ STEP_TIMEOUT_S = 600.0
 class MissionSystem(esper.Processor):
     """Advance every running mission by one step.
 
-    Phase: MISSION. Reads: fleet pose/velocity, arrived, payload_result, low_battery, soc_frac.
+    Phase: MISSION. Reads: fleet pose/velocity, arrived, payload_result, payload_entity, low_battery, soc_frac.
     Writes: routes (via set_route), flight_mode, payload_request/payload_package, charging,
     mission_step; MissionRuntime components.
     """
@@ -45,9 +45,6 @@ class MissionSystem(esper.Processor):
 
     def process(self, ctx: StepContext) -> None:
         f = ctx.fleet
-        declare_flight_arrays(f)
-        if "payload_package" not in f.__dict__:
-            f.declare("payload_package", (), object, None)
         for ent, (ident, slot, rt) in esper.get_components(Identity, FleetSlot, MissionRuntime):
             if rt.state != "running":
                 continue
@@ -164,7 +161,7 @@ class MissionSystem(esper.Processor):
         else:
             xy = pos[:2]
         body = esper.component_for_entity(ent, RigidBody)
-        below = body.half_extents_m[2] + _carried_height(ctx, ent)
+        below = body.half_extents_m[2] + _carried_height(ctx, row)
         surface = ctx.services.layout.surface_height_m(xy[0], xy[1])
         touch_z = surface + below - LAND_BELOW_M
         speed = _speeds(step.waypoints[-1] if step.waypoints else None, rt.spec, lim)
@@ -217,7 +214,7 @@ class MissionSystem(esper.Processor):
         pos = f.pos_enu_m[row].copy()
         body = esper.component_for_entity(ent, RigidBody)
         surface = ctx.services.layout.surface_height_m(pos[0], pos[1])
-        touch = np.array([pos[0], pos[1], surface + body.half_extents_m[2] + _carried_height(ctx, ent) - LAND_BELOW_M])
+        touch = np.array([pos[0], pos[1], surface + body.half_extents_m[2] + _carried_height(ctx, row) - LAND_BELOW_M])
         speed = (lim.cruise_speed_m_s, lim.climb_speed_m_s, lim.descent_speed_m_s)
         set_route(f, row, _route([pos, touch], [speed, speed], np.nan))
         esper.add_component(ent, _EmergencyLanding())
@@ -343,19 +340,12 @@ def _hold_here(f: Any, row: int) -> None:
     set_route(f, row, Route(np.array([pos, pos]), np.array([sp, sp]), yaw))
 
 
-def _carried_height(ctx: StepContext, ent: int) -> float:
-    """Height of the package hanging under the drone (it adds to the landing height), 0 if none."""
-    carried = _carried(ent)
-    if carried is None:
+def _carried_height(ctx: StepContext, row: int) -> float:
+    """Height of the package hanging under drone ``row`` (it adds to the landing height), 0 if none."""
+    package = int(ctx.fleet.payload_entity[row])
+    if package < 0:
         return 0.0
-    return float(2.0 * esper.component_for_entity(carried.package_entity, RigidBody).half_extents_m[2])
-
-
-def _carried(ent: int) -> Any:
-    """What the payload system says drone ``ent`` carries (``Carried`` or None)."""
-    from .payload import PayloadSystem
-    system = esper.get_processor(PayloadSystem)
-    return None if system is None else system.carried.get(ent)
+    return float(2.0 * esper.component_for_entity(package, RigidBody).half_extents_m[2])
 
 
 def _landed(ctx: StepContext, ent: int, row: int, scratch: dict[str, Any], need_hold: bool = True) -> bool:
@@ -363,7 +353,7 @@ def _landed(ctx: StepContext, ent: int, row: int, scratch: dict[str, Any], need_
     f = ctx.fleet
     body = esper.component_for_entity(ent, RigidBody).body_id
     touching = ctx.physics.touching(body)
-    carried = _carried_body(ent)
+    carried = _carried_body(ctx, row)
     if carried is not None:
         touching |= ctx.physics.touching(carried)
         touching -= {body, carried}
@@ -375,6 +365,7 @@ def _landed(ctx: StepContext, ent: int, row: int, scratch: dict[str, Any], need_
     return False
 
 
-def _carried_body(ent: int) -> int | None:
-    carried = _carried(ent)
-    return None if carried is None else esper.component_for_entity(carried.package_entity, RigidBody).body_id
+def _carried_body(ctx: StepContext, row: int) -> int | None:
+    """PyBullet body of the package drone ``row`` carries (``payload_entity``), None if none."""
+    package = int(ctx.fleet.payload_entity[row])
+    return None if package < 0 else esper.component_for_entity(package, RigidBody).body_id

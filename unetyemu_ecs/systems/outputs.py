@@ -9,14 +9,15 @@ from typing import IO
 import esper
 import numpy as np
 
-from ..components.body import FleetSlot, Identity
+from ..components.body import Identity
 from ..components.mission import MissionRuntime
 from ..frames import euler_rpy_from_quat_xyzw
 from ..geodesy import GeodeticOrigin, LocalTangentPlane
 from ..phases import Phase
 from ..world import StepContext
-from .car_state import DriveMode, declare_car_arrays
-from .flight_state import FlightMode, declare_flight_arrays
+from .car_state import DriveMode
+from .fleet_system import FleetSystem
+from .flight_state import FlightMode
 
 POSE_COLUMNS = ("time_s", "x_m", "y_m", "z_m", "roll_deg", "pitch_deg", "yaw_deg", "lat_deg", "lon_deg",
                 "alt_m", "vx_m_s", "vy_m_s", "vz_m_s", "speed_m_s")
@@ -26,18 +27,21 @@ FLIGHT_COLUMNS = ("mode", "thrust_fl_n", "thrust_fr_n", "thrust_br_n", "thrust_b
 CAR_COLUMNS = ("drive_mode", "throttle", "brake", "steer_deg", "speed_fwd_m_s", "speed_sp_m_s")
 
 
-class TrajectoryLogSystem(esper.Processor):
+class TrajectoryLogSystem(FleetSystem):
     """Append one row per vehicle to ``<out_dir>/<vehicle>.csv`` every ``decimation`` steps.
 
     Phase: OUTPUTS (read-only). Reads: fleet pose and velocity. Rate: ``log_hz`` on the sim clock
     (every ``round(physics_hz / log_hz)`` steps), plus a first row at t = 0. Each batch is flushed so
-    that an interrupted run keeps every row written so far.
+    that an interrupted run keeps every row written so far. A vehicle spawned later gets its file
+    when it first appears; a removed one's file stays open (and complete) until :meth:`close`.
     """
 
     phase = Phase.OUTPUTS
     order = 90
+    requires = (Identity,)
 
     def __init__(self, out_dir: Path, decimation: int, origin: GeodeticOrigin) -> None:
+        super().__init__()
         self.out_dir = Path(out_dir)
         self.decimation = max(1, int(decimation))
         self._ltp = LocalTangentPlane(origin)
@@ -45,41 +49,47 @@ class TrajectoryLogSystem(esper.Processor):
         self._writers: list[csv.writer] = []
         self._kind: dict[int, str] = {}         # writer index -> entity kind (which extra columns)
         self._names: list[str] = []
-        self._rows = np.empty(0, dtype=np.intp)
-        self._seen_version = -1
+        self._logged = np.empty(0, dtype=np.intp)   # fleet rows of the vehicles (not packages), ascending
+        self._writer_idx: list[int] = []            # writer of each logged row
+        self._entity_of: dict[str, int] = {}        # vehicle name -> entity (for its mission)
         self.paths: dict[str, Path] = {}
 
-    def _gather(self) -> None:
-        found = sorted(((ident.name, slot.row) for _, (ident, slot) in esper.get_components(Identity, FleetSlot)
-                        if ident.kind != "package"))
-        kinds = {ident.name: ident.kind for _, ident in esper.get_component(Identity)}
-        self._mission_of = {ident.name: ent for ent, ident in esper.get_component(Identity)}
-        new = [name for name, _ in found if name not in self.paths]
-        for name in new:
-            path = self.out_dir / f"{name}.csv"
+    def gather(self, ctx: StepContext) -> None:
+        vehicles = [(int(row), int(ent), ident) for row, ent, ident in zip(self.rows, self.entities, self.components[0])
+                    if ident.kind != "package"]
+        for _, _, ident in sorted(vehicles, key=lambda v: v[2].name):     # new files in name order
+            if ident.name in self.paths:
+                continue
+            path = self.out_dir / f"{ident.name}.csv"
             fh = open(path, "w", newline="", encoding="utf-8")  # noqa: SIM115 (closed in close())
             w = csv.writer(fh)
-            extra = {"quadrotor": FLIGHT_COLUMNS, "car": CAR_COLUMNS}.get(kinds[name], ())
+            extra = {"quadrotor": FLIGHT_COLUMNS, "car": CAR_COLUMNS}.get(ident.kind, ())
             w.writerow(POSE_COLUMNS + extra)
-            self._kind[len(self._files)] = kinds[name]
-            self._names.append(name)
-            self.paths[name] = path
+            self._kind[len(self._files)] = ident.kind
+            self._names.append(ident.name)
+            self.paths[ident.name] = path
             self._files.append(fh)
             self._writers.append(w)
         order = {name: i for i, name in enumerate(self.paths)}
-        by_writer = sorted((order[name], row) for name, row in found)
-        self._writer_idx = [i for i, _ in by_writer]
-        self._rows = np.array([r for _, r in by_writer], dtype=np.intp)
+        self._logged = np.array([row for row, _, _ in vehicles], dtype=np.intp)
+        self._writer_idx = [order[ident.name] for _, _, ident in vehicles]
+        self._entity_of = {ident.name: ent for _, ent, ident in vehicles}
 
     def write_rows(self, ctx: StepContext, time_s: float) -> None:
         """Write the current state of every vehicle, stamped ``time_s``."""
+        if self.refresh(ctx):
+            self._write(ctx, time_s)
+
+    def update(self, ctx: StepContext) -> None:
+        self._write(ctx, ctx.sim_time_s + ctx.dt_s)
+
+    def process(self, ctx: StepContext) -> None:
+        if (ctx.step + 1) % self.decimation == 0:
+            super().process(ctx)
+
+    def _write(self, ctx: StepContext, time_s: float) -> None:
         f = ctx.fleet
-        if f.version != self._seen_version:
-            declare_flight_arrays(f)
-            declare_car_arrays(f)
-            self._gather()
-            self._seen_version = f.version
-        r = self._rows
+        r = self._logged
         if r.size == 0:
             return
         pos = f.pos_enu_m[r]
@@ -105,7 +115,7 @@ class TrajectoryLogSystem(esper.Processor):
         step = int(f.mission_step[row])
         step_type = ""
         if step >= 0:
-            rt = esper.try_component(self._mission_of[name], MissionRuntime)
+            rt = esper.try_component(self._entity_of[name], MissionRuntime)
             if rt is not None:
                 step_type = rt.spec.steps[step].type
         return [FlightMode(int(f.flight_mode[row])).name.lower(), *(f"{t:.4f}" for t in thrust),
@@ -118,10 +128,6 @@ class TrajectoryLogSystem(esper.Processor):
         return [DriveMode(int(f.drive_mode[row])).name.lower(), f"{f.car_throttle[row]:.4f}",
                 f"{f.car_brake[row]:.4f}", f"{np.rad2deg(f.car_steer_rad[row]):.3f}",
                 f"{f.car_speed_m_s[row]:.4f}", f"{f.car_speed_sp_m_s[row]:.4f}"]
-
-    def process(self, ctx: StepContext) -> None:
-        if (ctx.step + 1) % self.decimation == 0:
-            self.write_rows(ctx, ctx.sim_time_s + ctx.dt_s)
 
     def close(self) -> None:
         for fh in self._files:

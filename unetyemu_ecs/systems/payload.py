@@ -3,6 +3,9 @@
 A pickup does nothing but join the two rigid bodies: the drone's controllers then feel the extra
 mass, the shifted centre of mass and the larger inertia through the physics (the paper's §2.1.1).
 A package heavier than the drone's ``max_payload_kg`` disables its motors while attached.
+
+What a drone carries is public through the fleet array ``payload_entity`` (the esper entity of the
+package, -1 when none) and ``payload_kg``; the mission reads those, never this system's state.
 """
 
 from __future__ import annotations
@@ -16,8 +19,8 @@ from ..components.body import FleetSlot, Identity, RigidBody
 from ..components.flight import PayloadBay
 from ..phases import Phase
 from ..world import StepContext
-from .flight_state import PayloadRequest, PayloadResult, declare_flight_arrays
-from .rows import gather_rows
+from .fleet_system import FleetSystem
+from .flight_state import PayloadRequest, PayloadResult
 
 
 @dataclass(frozen=True)
@@ -30,42 +33,33 @@ class Carried:
     mass_kg: float
 
 
-class PayloadSystem(esper.Processor):
+class PayloadSystem(FleetSystem):
     """Serve attach/release requests of drones with a :class:`PayloadBay`.
 
     Phase: PAYLOAD_ENERGY (order 10); event-driven: does nothing on steps without requests.
     Reads: fleet.payload_request, payload_package, poses. Writes: fleet.payload_result, payload_kg,
-    motors_enabled; PyBullet constraints.
+    payload_entity, motors_enabled; PyBullet constraints.
     """
 
     phase = Phase.PAYLOAD_ENERGY
     order = 10
+    requires = (PayloadBay,)
 
     def __init__(self) -> None:
-        self._seen_version = -1
-        self._rows = np.empty(0, dtype=np.intp)
-        self.carried: dict[int, Carried] = {}          # drone entity -> what it carries
+        super().__init__()
+        self._carried: dict[int, Carried] = {}          # drone entity -> what it carries (and its constraint)
 
-    def _gather(self, ctx: StepContext) -> None:
-        declare_flight_arrays(ctx.fleet)
-        ctx.fleet.declare("payload_package", (), object, None)
-        self._rows, self._bays = gather_rows(PayloadBay)
-
-    def process(self, ctx: StepContext) -> None:
+    def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
-        if f.version != self._seen_version:
-            self._gather(ctx)
-            self._seen_version = f.version
-        r = self._rows
-        if r.size == 0:
-            return
+        r = self.rows
+        bays = self.components[0]
         pending = np.flatnonzero(f.payload_request[r] != PayloadRequest.NONE)
         for k in pending.tolist():
             row = int(r[k])
             request = int(f.payload_request[row])
             f.payload_request[row] = PayloadRequest.NONE
             if request == PayloadRequest.ATTACH:
-                f.payload_result[row] = self._attach(ctx, row, self._bays[k], f.payload_package[row])
+                f.payload_result[row] = self._attach(ctx, row, bays[k], f.payload_package[row])
             else:
                 f.payload_result[row] = self._release(ctx, row)
 
@@ -73,11 +67,11 @@ class PayloadSystem(esper.Processor):
         f = ctx.fleet
         drone = int(f.entity[row])
         ident = esper.component_for_entity(drone, Identity)
-        if drone in self.carried:
+        if drone in self._carried:
             return int(PayloadResult.ATTACHED)
         body = esper.component_for_entity(drone, RigidBody)
         bottom_z = f.pos_enu_m[row, 2] - body.half_extents_m[2]
-        taken = {c.package_entity for c in self.carried.values()}
+        taken = {c.package_entity for c in self._carried.values()}
         best: tuple[float, int, str, RigidBody] | None = None
         for ent, (pid, slot, pbody) in esper.get_components(Identity, FleetSlot, RigidBody):
             if pid.kind != "package" or ent in taken or (wanted is not None and pid.name != wanted):
@@ -93,8 +87,9 @@ class PayloadSystem(esper.Processor):
             return int(PayloadResult.NOTHING_IN_REACH)
         _, pkg_ent, pkg_name, pbody = best
         constraint = ctx.physics.attach_fixed(body.body_id, pbody.body_id)
-        self.carried[drone] = Carried(pkg_name, pkg_ent, constraint, pbody.mass_kg)
+        self._carried[drone] = Carried(pkg_name, pkg_ent, constraint, pbody.mass_kg)
         f.payload_kg[row] = pbody.mass_kg
+        f.payload_entity[row] = pkg_ent
         if pbody.mass_kg > bay.max_payload_kg:
             f.motors_enabled[row] = False
             ctx.services.note(ctx.sim_time_s, ident.name,
@@ -107,11 +102,12 @@ class PayloadSystem(esper.Processor):
     def _release(self, ctx: StepContext, row: int) -> int:
         f = ctx.fleet
         drone = int(f.entity[row])
-        carried = self.carried.pop(drone, None)
+        carried = self._carried.pop(drone, None)
         if carried is None:
             return int(PayloadResult.RELEASED)
         ctx.physics.detach(carried.constraint_id)
         f.payload_kg[row] = 0.0
+        f.payload_entity[row] = -1
         f.motors_enabled[row] = bool(f.soc_frac[row] > 0.0)   # unless the battery is empty
         ident = esper.component_for_entity(drone, Identity)
         ctx.services.note(ctx.sim_time_s, ident.name, f"released {carried.package}")

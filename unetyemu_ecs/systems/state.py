@@ -15,6 +15,10 @@ class StateReadbackSystem(esper.Processor):
 
     Phase: STATE. Reads: PyBullet. Writes: fleet.pos_enu_m, quat_enu_flu_xyzw, vel_enu_m_s,
     rate_enu_rad_s, rate_flu_rad_s, acc_enu_m_s2 (velocity difference over the step), odometer_m.
+
+    Not a :class:`~unetyemu_ecs.systems.fleet_system.FleetSystem`: its rows are every body, whatever
+    its components, and it needs nothing but their body ids, which change only when rows are
+    allocated or freed, so ``fleet.version`` alone tells it when to look again.
     """
 
     phase = Phase.STATE
