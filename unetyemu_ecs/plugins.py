@@ -26,7 +26,7 @@ import dataclasses
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from importlib.metadata import EntryPoint, entry_points
-from typing import Any
+from typing import Annotated, Any
 
 from .control.layers import LAYERS_OF_KIND, Layer
 from .phases import Phase
@@ -38,6 +38,44 @@ GROUP_CONTROLLERS = "unetyemu_ecs.controllers"
 GROUPS = (GROUP_COMPONENTS, GROUP_SYSTEMS, GROUP_SENSORS, GROUP_CONTROLLERS)
 
 ALL_KINDS = frozenset({"quadrotor", "car", "package"})
+
+
+def _check_schema(cls: type, what: str) -> None:
+    """Every ``Annotated`` constraint on a schema dataclass's fields must be one the loader checks
+    (``unetyemu_ecs.plugin_api.Ge`` etc.): a constraint from another library would be skipped silently."""
+    from typing import get_args, get_origin, get_type_hints
+
+    def markers(tp: Any) -> Iterable[Any]:
+        if get_origin(tp) is Annotated:
+            base, *extra = get_args(tp)
+            yield from extra
+            yield from markers(base)
+        else:
+            for arg in get_args(tp):
+                yield from markers(arg)
+
+    for name, tp in get_type_hints(cls, include_extras=True).items():
+        for marker in markers(tp):
+            if not callable(getattr(marker, "check", None)):
+                raise TypeError(f"{what}: field {name!r} has the constraint {marker!r}, which the world-file loader "
+                                "cannot check: use the ones of unetyemu_ecs.plugin_api (Ge, Gt, Le, Lt, Each, MaxLen)")
+
+
+def _check_numeric_params(cls: type, what: str) -> None:
+    """A controller's parameters are stacked into float arrays: every field must be a number (or a tuple of them)."""
+    from typing import get_args, get_origin, get_type_hints
+
+    def numeric(tp: Any) -> bool:
+        if get_origin(tp) is Annotated:
+            return numeric(get_args(tp)[0])
+        if get_origin(tp) is tuple:
+            return all(numeric(a) for a in get_args(tp) if a is not Ellipsis)
+        return tp in (float, int, bool)
+
+    for name, tp in get_type_hints(cls, include_extras=True).items():
+        if not numeric(tp):
+            raise TypeError(f"{what}: parameter {name!r} must be a number or a tuple of numbers (the law gets every "
+                            f"parameter stacked into an array), got {tp!r}")
 
 
 def _check_system_class(cls: Any, what: str) -> None:
@@ -64,6 +102,7 @@ class ComponentPlugin:
     def __post_init__(self) -> None:
         if not dataclasses.is_dataclass(self.component):
             raise TypeError(f"component {self.component!r} must be a dataclass")
+        _check_schema(self.component, f"component {self.component.__name__}")
         for s in self.systems:
             _check_system_class(s, f"component {self.component.__name__}")
         unknown = set(self.applies_to) - ALL_KINDS
@@ -87,6 +126,7 @@ class SystemPlugin:
         _check_system_class(self.system, "system plugin")
         if not dataclasses.is_dataclass(self.config):
             raise TypeError(f"system {self.system.__name__}: config {self.config!r} must be a dataclass")
+        _check_schema(self.config, f"system {self.system.__name__} config")
 
 
 @dataclass(frozen=True)
@@ -101,6 +141,7 @@ class SensorPlugin:
     def __post_init__(self) -> None:
         if not dataclasses.is_dataclass(self.component):
             raise TypeError(f"sensor component {self.component!r} must be a dataclass")
+        _check_schema(self.component, f"sensor {self.component.__name__}")
         _check_system_class(self.system, f"sensor {self.component.__name__}")
 
     @property
@@ -133,6 +174,8 @@ class ControllerPlugin:
         object.__setattr__(self, "layer", Layer(self.layer))
         if not dataclasses.is_dataclass(self.params):
             raise TypeError(f"controller params {self.params!r} must be a dataclass")
+        _check_schema(self.params, f"controller params {self.params.__name__}")
+        _check_numeric_params(self.params, f"controller params {self.params.__name__}")
         if not callable(self.law):
             raise TypeError(f"controller law {self.law!r} must be callable")
         for name, spec in self.memory.items():
@@ -230,7 +273,8 @@ class Registry:
         if key in entries and (layer is None or entries[key].spec.layer == layer):
             return entries[key]
         if key in entries:
-            raise KeyError(f"controller {key!r} is a {entries[key].spec.layer} controller, not a {layer} one "
+            article = "an" if str(layer)[:1] in "aeiou" else "a"
+            raise KeyError(f"controller {key!r} is a {entries[key].spec.layer} controller, not {article} {layer} one "
                            f"({layer} controllers: {', '.join(fits) or 'none installed'})")
         message = self._unknown(key, [GROUP_CONTROLLERS], fits)
         raise KeyError(message.replace("unknown key", f"unknown {layer or ''} controller".replace("  ", " ")))

@@ -145,6 +145,12 @@ def test_a_controller_block_that_is_not_a_mapping_is_refused(reg):
         "w.yaml:11: vehicles[0].controller: expected a mapping, got a list"]
 
 
+def test_controller_params_given_as_null_are_refused(reg):
+    text = world("    controller:\n      attitude: {name: angle_rate_pd, params: null}\n")
+    assert issues(text, reg) == ["w.yaml:12: vehicles[0].controller.attitude.params: params: null is not a parameter "
+                                 "block: give a mapping of the controller's parameters ({} keeps the defaults)"]
+
+
 @pytest.mark.parametrize("key", ["motors", "guidance", "imu"])
 def test_a_component_block_given_as_null_is_refused(reg, key):
     text = world(f"    components:\n      {key}: null\n")
@@ -187,6 +193,30 @@ def test_a_controller_for_no_layer_or_with_non_dataclass_params_is_refused():
         ControllerPlugin(layer="attitude", params=dict, law=hover_only_law)
     with pytest.raises(TypeError, match="expected name -> \\(tail shape, initial value\\)"):
         ControllerPlugin(layer="attitude", params=HoverOnlyParams, law=hover_only_law, memory={"calls": 0.0})
+
+
+class ForeignLe:
+    """A range marker of another library (like ``annotated_types.Le``): the loader has no check for it."""
+
+    def __init__(self, le: float) -> None:
+        self.le = le
+
+
+@dataclass(frozen=True)
+class ForeignRangeParams:
+    gain: Annotated[float, ForeignLe(10.0)] = 1.0
+
+
+@dataclass(frozen=True)
+class NamedParams:
+    label: str = "x"
+
+
+def test_a_parameter_with_a_range_the_loader_cannot_check_or_a_non_numeric_parameter_is_refused():
+    with pytest.raises(TypeError, match="field 'gain' has the constraint .* which the world-file loader cannot check"):
+        ControllerPlugin(layer="attitude", params=ForeignRangeParams, law=hover_only_law)
+    with pytest.raises(TypeError, match="parameter 'label' must be a number or a tuple of numbers"):
+        ControllerPlugin(layer="attitude", params=NamedParams, law=hover_only_law)
 
 
 # -- valid choices -----------------------------------------------------------------------------

@@ -475,7 +475,9 @@ def _resolve_controllers(kind: str, chosen: dict[str, Any], path: Path, registry
                 continue
             name, params_block = block.get("name"), block.get("params", {})
             if params_block is None:
-                params_block = {}
+                issues.append(src.issue((*lpath, "params"), "params: null is not a parameter block: give a mapping of "
+                                                            "the controller's parameters ({} keeps the defaults)"))
+                continue
         else:
             name = block
         available = sorted(k for k, e in registry.entries["unetyemu_ecs.controllers"].items() if e.spec.layer == layer)
