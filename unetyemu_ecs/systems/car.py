@@ -26,7 +26,7 @@ from ..transport.bus import Arm, CmdVel, Drive, DriveRoute, SetTarget
 from ..units import GRAVITY_M_S2
 from ..world import StepContext
 from .car_state import CarPath, DriveMode, set_path
-from .commands import claim, hold_until_s, lapsed_rows, warn_if_obstructed
+from .commands import serve_commands, warn_if_obstructed
 from .fleet_system import FleetSystem, stack_params
 
 STOPPED_SPEED_M_S = 0.2        # a route is done when the car is this slow within the arrival radius
@@ -61,16 +61,7 @@ class CarCommandSystem(esper.Processor):
                 row = f.row_of(ent)
                 wp = np.array([[w.x, w.y] for w in route.waypoints])
                 self._give_path(ctx, ent, row, wp, route.speed_m_s, route.loop, route.laps)
-        for ent, msg in claim(ctx, CarDynamics):
-            error = self._apply(ctx, ent, msg)
-            if error:
-                ctx.services.note(ctx.sim_time_s, msg.vehicle, f"rejected {msg.kind} command: {error}")
-            else:
-                f.cmd_hold_until_s[f.row_of(ent)] = hold_until_s(ctx, msg)
-        for row in lapsed_rows(ctx):
-            ent = int(f.entity[row])
-            if esper.has_component(ent, CarDynamics):
-                self._brake_after_lapse(ctx, ent, int(row))
+        serve_commands(ctx, CarDynamics, self._apply, self._brake_after_lapse)
 
     def _brake_after_lapse(self, ctx: StepContext, ent: int, row: int) -> None:
         """No new teleop/cmd_vel within the command timeout: brake to a stop and hold there."""

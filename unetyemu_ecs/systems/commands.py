@@ -11,6 +11,7 @@ dropped with a note, and the simulation goes on.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import esper
 import numpy as np
@@ -85,17 +86,7 @@ class FlightCommandSystem(esper.Processor):
 
     def process(self, ctx: StepContext) -> None:
         f = ctx.fleet
-        for ent, msg in claim(ctx, GuidanceLimits):
-            self._stop_script(ctx, ent, msg)
-            error = self._apply(ctx, ent, msg)
-            if error:
-                ctx.services.note(ctx.sim_time_s, msg.vehicle, f"rejected {msg.kind} command: {error}")
-            else:
-                f.cmd_hold_until_s[f.row_of(ent)] = hold_until_s(ctx, msg)
-        for row in lapsed_rows(ctx):
-            ent = int(f.entity[row])
-            if esper.has_component(ent, GuidanceLimits):
-                self._hold_after_lapse(ctx, ent, row)
+        serve_commands(ctx, GuidanceLimits, self._take, self._hold_after_lapse)
         for ent, (slot, script) in esper.get_components(FleetSlot, TeleopScript):
             k = self._script_next.get(ent, 0)
             frames = script.keyframes
@@ -116,6 +107,10 @@ class FlightCommandSystem(esper.Processor):
             self._script_next[ent] = len(script.keyframes)
             ctx.services.note(ctx.sim_time_s, msg.vehicle, f"teleop_script stopped: a live {msg.kind} command "
                                                            "took over")
+
+    def _take(self, ctx: StepContext, ent: int, msg: object) -> str:
+        self._stop_script(ctx, ent, msg)
+        return self._apply(ctx, ent, msg)
 
     def _hold_after_lapse(self, ctx: StepContext, ent: int, row: int) -> None:
         """No new teleop/cmd_vel within the command timeout: hover where the drone is."""
@@ -203,10 +198,26 @@ def hold_until_s(ctx: StepContext, msg: object) -> float:
 
 def lapsed_rows(ctx: StepContext) -> np.ndarray:
     """Rows whose streamed teleop/cmd_vel command has lapsed this step (``cmd_hold_until_s`` passed)."""
-    held = getattr(ctx.fleet, "cmd_hold_until_s", None)
-    if held is None:
-        return np.empty(0, dtype=np.intp)
-    return np.flatnonzero(held <= ctx.sim_time_s + 1e-9)
+    return np.flatnonzero(ctx.fleet.cmd_hold_until_s <= ctx.sim_time_s + 1e-9)
+
+
+def serve_commands(ctx: StepContext, has: type, apply: Callable[[StepContext, int, object], str],
+                   on_lapse: Callable[[StepContext, int, int], None]) -> None:
+    """One vehicle type's commands for this step: claim those for entities carrying ``has``, apply each
+    (``apply(ctx, entity, msg)`` returns "" or why it refused, which goes to the event log; an applied
+    one sets the row's ``cmd_hold_until_s``), then call ``on_lapse(ctx, entity, row)`` for each such
+    entity whose streamed teleop/cmd_vel lapsed this step."""
+    f = ctx.fleet
+    for ent, msg in claim(ctx, has):
+        error = apply(ctx, ent, msg)
+        if error:
+            ctx.services.note(ctx.sim_time_s, msg.vehicle, f"rejected {msg.kind} command: {error}")
+        else:
+            f.cmd_hold_until_s[f.row_of(ent)] = hold_until_s(ctx, msg)
+    for row in lapsed_rows(ctx):
+        ent = int(f.entity[row])
+        if esper.has_component(ent, has):
+            on_lapse(ctx, ent, int(row))
 
 
 def warn_if_obstructed(ctx: StepContext, ent: int, vehicle: str, start_enu_m: np.ndarray,
