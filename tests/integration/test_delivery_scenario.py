@@ -91,14 +91,17 @@ def test_target_sequence_drone_completes_and_teleop_drone_hovers(delivery_run):
 def test_csv_shows_the_power_step_at_pickup_and_back_after_delivery(delivery_run):
     out, _ = delivery_run
     rows = _rows(out / "drone1.csv")
-    hover_power = {True: [], False: []}
+    # steady level cruise (the scenario hardly hovers still: its few slow samples are transients), loaded
+    # out to the roof and empty back: thrust is about the weight, and rotor power goes as thrust^1.5
+    cruise_power = {True: [], False: []}
     for row in rows:
-        if row["mode"] == "auto" and float(row["speed_m_s"]) < 0.3 and float(row["z_m"]) > 20.0:
-            hover_power[float(row["payload_kg"]) > 0].append(float(row["power_w"]))
-    assert hover_power[True] and hover_power[False]
-    loaded, empty = np.median(hover_power[True]), np.median(hover_power[False])
-    # rotor power scales as mass^1.5: (10.5 / 8) ** 1.5 = 1.50
-    assert (loaded - 15.0) / (empty - 15.0) == pytest.approx(1.50, rel=0.05)
+        if row["mode"] == "auto" and row["mission_step_type"] == "cruise" and float(row["speed_m_s"]) > 6.0 \
+                and abs(float(row["vz_m_s"])) < 0.3:
+            cruise_power[float(row["payload_kg"]) > 0].append(float(row["power_w"]))
+    assert len(cruise_power[True]) > 50 and len(cruise_power[False]) > 50
+    loaded, empty = np.median(cruise_power[True]), np.median(cruise_power[False])
+    # rotor power (the total less the 15 W of avionics) scales as mass^1.5: (10.5 / 8) ** 1.5 = 1.50
+    assert (loaded - 15.0) / (empty - 15.0) == pytest.approx(1.50, rel=0.03)
     kinds = {row["mission_step_type"] for row in rows}
     assert {"pickup", "takeoff", "cruise", "land", "deliver"} <= kinds
 
