@@ -403,8 +403,6 @@ class Simulation:
         """Status of car ``name``: drive mode, route state ("driving", "done" or "" without one), laps done."""
         self._car(name)
         f, row = self.fleet, self.row(name)
-        if not hasattr(f, "drive_mode"):
-            return {"mode": "parked", "route": "", "laps": 0}
         mode = DriveMode(int(f.drive_mode[row]))
         route = "done" if f.path_done[row] else ("driving" if mode == DriveMode.ROUTE else "")
         return {"mode": mode.name.lower(), "route": route, "laps": int(f.path_laps[row])}

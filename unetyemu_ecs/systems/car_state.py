@@ -94,7 +94,6 @@ CAR_ARRAYS: dict[str, tuple[tuple[int, ...], type, float]] = {
     "path_done": ((), np.bool_, False),
     "car_speed_sp_m_s": ((), np.float64, 0.0),
     "car_steer_sp_rad": ((), np.float64, 0.0),       # bicycle-model front angle asked by guidance
-    "car_speed_int": ((), np.float64, 0.0),
     "car_throttle": ((), np.float64, 0.0),           # applied, [-1, 1]
     "car_brake": ((), np.float64, 1.0),              # applied, [0, 1]
     "car_steer_rad": ((), np.float64, 0.0),          # applied bicycle-model angle (after limits and slew)
