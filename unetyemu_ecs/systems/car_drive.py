@@ -21,7 +21,7 @@ from ..frames import R_from_quat_xyzw
 from ..phases import Phase
 from ..world import StepContext
 from .car_state import DriveMode
-from .controllers import ControllerSystem, register_layer
+from .controllers import ControllerSystem, finite_or_zero, register_layer
 from .fleet_system import stack_params, take_params
 
 
@@ -73,11 +73,13 @@ class DriveControllerSystem(ControllerSystem):
                              np.where(route, f.car_steer_sp_rad[rk], np.nan),
                              np.where(route, 0.0, f.cmd_vel[rk, 1]))
             state = CarState(v[k], f.rate_flu_rad_s[rk, 2], f.car_steer_rad[rk], f.car_throttle[rk], f.car_brake[rk])
-            out: CarCommand = self.call_law(ctx, sp, state, take_params(self.chassis, k),
-                                            take_params(self.params, k), rk)
-            throttle[k] = np.clip(np.nan_to_num(out.throttle), -1.0, 1.0)
-            brake[k] = np.clip(np.nan_to_num(out.brake), 0.0, 1.0)
-            steer_sp[k] = np.nan_to_num(out.steer_rad)
+            every = k.size == r.size
+            chassis = self.chassis if every else take_params(self.chassis, k)
+            params = self.params if every else take_params(self.params, k)
+            out: CarCommand = self.call_law(ctx, sp, state, chassis, params, rk)
+            throttle[k] = np.clip(finite_or_zero(out.throttle), -1.0, 1.0)
+            brake[k] = np.clip(finite_or_zero(out.brake), 0.0, 1.0)
+            steer_sp[k] = finite_or_zero(out.steer_rad)
 
         wheel_limit = steer_limit_rad(v, np.deg2rad(dyn.max_steer_deg), dyn.steer_scale_at_50_m_s)
         limit = bicycle_limit_rad(wheel_limit, dyn.wheelbase_m, dyn.track_m)     # inner wheel at the limit

@@ -49,6 +49,12 @@ def box_inertia_flu_kg_m2(mass_kg: np.ndarray, half_extents_m: np.ndarray) -> np
     return m / 3.0 * np.stack([h2[:, 1] + h2[:, 2], h2[:, 0] + h2[:, 2], h2[:, 0] + h2[:, 1]], axis=1)
 
 
+def finite_or_zero(values: Any) -> np.ndarray:
+    """A law's output as a float array with NaN and infinities replaced by 0 (checked cheaply first)."""
+    out = np.asarray(values, dtype=float)
+    return out if np.isfinite(out).all() else np.where(np.isfinite(out), out, 0.0)
+
+
 class ControllerSystem(FleetSystem):
     """Runs one registered controller for the vehicles that chose it; subclassed per layer, then
     per controller by :func:`controller_system`."""
@@ -114,7 +120,9 @@ class DroneControllerSystem(ControllerSystem):
                           f.rate_flu_rad_s[rows])
 
     def subset(self, k: np.ndarray) -> tuple[Any, Any]:
-        """Parameters and airframe of the local indices ``k``."""
+        """Parameters and airframe of the local indices ``k`` (all of them: the stacked ones as they are)."""
+        if k.size == self.rows.size:
+            return self.params, self.airframe
         return take_params(self.params, k), take_params(self.airframe, k)
 
 
@@ -194,8 +202,7 @@ class MixerSystem(DroneControllerSystem):
         r = self.rows
         cmd = ThrustTorqueCommand(f.thrust_frac_sp[r], f.torque_cmd[r])
         out = self.call_law(ctx, cmd, self.state(ctx, r), self.airframe, self.params, r)
-        frac = np.asarray(out.motor_frac, dtype=float)
-        f.motor_frac_cmd[r] = np.clip(np.nan_to_num(frac, nan=0.0), 0.0, 1.0)
+        f.motor_frac_cmd[r] = np.clip(finite_or_zero(out.motor_frac), 0.0, 1.0)
 
 
 _DRONE_REQUIRES = (QuadrotorMotors, GuidanceLimits, RigidBody)
