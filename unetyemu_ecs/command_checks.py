@@ -15,16 +15,16 @@ Ranges and why (frames: docs/architecture.md §3; the ROS 2 command topics: §6)
   beyond it there is no ground to land or drive on. A drone's z in [0, ``MAX_Z_M``] m, height above
   the ground plane (10 km is above every drone's service ceiling); a car ignores z and yaw. ``speed``
   in (0, ``MAX_CRUISE_SPEED_M_S``] m/s, the same cap as a mission's cruise speed (§5).
-  ``yaw_deg`` any finite angle [deg, ENU].
+  ``yaw_deg`` within one turn either way, [-360, 360] deg [ENU, 0 = east, counter-clockwise].
 - ``teleop`` (drone sticks): throttle, pitch, roll, yaw normalised to [-1, 1].
 - ``drive`` (car pedals and wheel): throttle [-1, 1] (negative = reverse), brake [0, 1], steering
   [-1, 1] (+1 = full left).
 - ``cmd_vel`` (body frame FLU): forward, left and up speeds within +-``MAX_CRUISE_SPEED_M_S`` m/s,
   yaw rate within +-``MAX_YAW_RATE_RAD_S`` rad/s (a turn a second). The controllers clamp further
   to each vehicle's own limits.
-- ``drive_route``: at least one (x, y) waypoint [m, ENU], each inside the world; a loop needs at
-  least 3; ``speed`` finite and > 0 m/s; ``laps`` an integer in [0, ``MAX_LAPS``] (0 = forever),
-  only with ``loop``.
+- ``drive_route``: one to ``MAX_WAYPOINTS`` (x, y) waypoints of numbers [m, ENU], each inside the
+  world; a loop needs at least 3; ``speed`` in (0, ``MAX_CRUISE_SPEED_M_S``] m/s like a target's;
+  ``loop`` True or False; ``laps`` an integer in [0, ``MAX_LAPS``] (0 = forever), only with ``loop``.
 - ``arm``: ``True`` or ``False`` (numbers and strings are refused: ``"False"`` is truthy).
 
 Booleans are not numbers here (``True`` is not a speed), numpy scalars are.
@@ -37,7 +37,7 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from .config.limits import MAX_Z_M
+from .config.limits import MAX_WAYPOINTS, MAX_Z_M
 from .mission.spec import MAX_CRUISE_SPEED_M_S
 from .scene.primitives import SceneLayout
 
@@ -45,6 +45,7 @@ MAX_HOLD_S = 3600.0               # longest hold of a teleop/drive/cmd_vel comma
 MAX_YAW_RATE_RAD_S = 2 * math.pi  # a turn a second: beyond any drone's or car's yaw-rate limit
 # Laps of a looping car route (0 = forever): 10 000 laps of a 100 m loop at 30 m/s take 9 h of sim
 # time; a larger number is a typo for 0.
+MAX_YAW_DEG = 360.0               # a heading: one turn either way is every heading there is
 MAX_LAPS = 10_000
 
 
@@ -93,6 +94,9 @@ def check_set_target(vehicle: str, kind: str, layout: SceneLayout, x: float, y: 
         raise ValueError(f"{what}: values must be finite numbers, got {values}")
     if speed is not None and not 0 < speed <= MAX_CRUISE_SPEED_M_S:
         raise ValueError(f"{what}: speed must be in (0, {MAX_CRUISE_SPEED_M_S:g}] m/s, got {speed}")
+    if yaw_deg is not None and not -MAX_YAW_DEG <= yaw_deg <= MAX_YAW_DEG:
+        raise ValueError(f"{what}: yaw_deg must be in [-{MAX_YAW_DEG:g}, {MAX_YAW_DEG:g}] deg (ENU, 0 = east, "
+                         f"counter-clockwise), got {yaw_deg}")
     check_in_world(what, layout, [(x, y)])
     if kind == "quadrotor" and not 0.0 <= z <= MAX_Z_M:
         raise ValueError(f"{what}: z must be in [0, {MAX_Z_M:g}] m (ENU height above "
@@ -153,14 +157,21 @@ def check_drive_route(vehicle: str, layout: SceneLayout, waypoints: Sequence[tup
     float pairs [m, ENU], speed None = the car's default)."""
     what = f"drive_route({vehicle!r})"
     try:
-        wp = tuple((float(x), float(y)) for x, y in waypoints)
-    except (TypeError, ValueError):
+        pairs = [tuple(p) for p in waypoints]
+    except TypeError:
         raise ValueError(f"{what}: waypoints must be (x, y) pairs of numbers") from None
+    if not all(len(p) == 2 and all(is_real(v) for v in p) for p in pairs):
+        raise ValueError(f"{what}: waypoints must be (x, y) pairs of numbers")
+    if len(pairs) > MAX_WAYPOINTS:
+        raise ValueError(f"{what}: at most {MAX_WAYPOINTS} waypoints, got {len(pairs)}")
+    wp = tuple((float(x), float(y)) for x, y in pairs)
     if not wp or not all(math.isfinite(v) for xy in wp for v in xy):
         raise ValueError(f"{what}: need at least one finite (x, y) waypoint")
     check_in_world(what, layout, wp)
-    if speed is not None and not (math.isfinite(speed) and speed > 0):
-        raise ValueError(f"{what}: speed must be a finite number > 0, got {speed}")
+    if speed is not None and not (is_real(speed) and 0 < speed <= MAX_CRUISE_SPEED_M_S):
+        raise ValueError(f"{what}: speed must be a number in (0, {MAX_CRUISE_SPEED_M_S:g}] m/s, got {speed!r}")
+    if not isinstance(loop, (bool, np.bool_)):
+        raise ValueError(f"{what}: loop must be True or False, got {loop!r}")
     if loop and len(wp) < 3:
         raise ValueError(f"{what}: a loop needs at least 3 waypoints, got {len(wp)}")
     if not isinstance(laps, (int, np.integer)) or isinstance(laps, bool) or not 0 <= laps <= MAX_LAPS \

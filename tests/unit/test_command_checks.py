@@ -58,6 +58,12 @@ def test_a_target_speed_outside_0_to_30_m_s_is_refused(speed):
         check_set_target("d1", "quadrotor", LAYOUT, 10.0, 0.0, 5.0, speed=speed)
 
 
+@pytest.mark.parametrize("yaw_deg", [360.5, -361.0, 1e300])
+def test_a_target_heading_beyond_a_turn_either_way_is_refused(yaw_deg):
+    with pytest.raises(ValueError, match=r"set_target\('d1'\): yaw_deg must be in \[-360, 360\] deg"):
+        check_set_target("d1", "quadrotor", LAYOUT, 0.0, 0.0, 5.0, yaw_deg=yaw_deg)
+
+
 def test_a_valid_target_comes_back_as_floats_with_the_yaw_in_radians():
     # GIVEN numpy numbers, as a transport decodes them
     pos, yaw_rad, speed = check_set_target("d1", "quadrotor", LAYOUT, np.float32(10.0), np.int64(-5), 20.0,
@@ -136,8 +142,15 @@ def test_arm_takes_numpy_booleans():
     ({"waypoints": [(0.0, "a")]}, r"waypoints must be \(x, y\) pairs of numbers"),
     ({"waypoints": [(0.0, 1.0, 2.0)]}, r"waypoints must be \(x, y\) pairs of numbers"),
     ({"waypoints": [(0.0, 0.0), (0.0, 101.0)]}, rf"\(0, 101\) is outside the world, which spans {EXTENT}"),
-    ({"speed": 0.0}, "speed must be a finite number > 0"),
-    ({"speed": float("inf")}, "speed must be a finite number > 0"),
+    ({"speed": 0.0}, r"speed must be a number in \(0, 30\] m/s, got 0.0"),
+    ({"speed": float("inf")}, r"speed must be a number in \(0, 30\] m/s"),
+    ({"speed": 30.5}, r"speed must be a number in \(0, 30\] m/s, got 30.5"),
+    ({"speed": "5"}, r"speed must be a number in \(0, 30\] m/s, got '5'"),
+    ({"speed": True}, r"speed must be a number in \(0, 30\] m/s, got True"),
+    ({"waypoints": [("1", 2)]}, r"waypoints must be \(x, y\) pairs of numbers"),
+    ({"waypoints": [(True, 2)]}, r"waypoints must be \(x, y\) pairs of numbers"),
+    ({"waypoints": [(1.0, 1.0)] * 1001}, "at most 1000 waypoints, got 1001"),
+    ({"loop": "yes"}, "loop must be True or False, got 'yes'"),
     ({"waypoints": [(0, 0), (10, 0)], "loop": True}, "a loop needs at least 3 waypoints, got 2"),
     ({"laps": 2}, r"laps must be an integer in \[0, 10000\] and needs loop=True"),
     ({"loop": True, "laps": MAX_LAPS + 1}, r"laps must be an integer in \[0, 10000\]"),
