@@ -258,3 +258,27 @@ def test_built_params_select_the_one_system_that_runs_each_drones_attitude_law(r
         # AND d2's command is its law's: half the hover thrust, no torque
         assert f.thrust_frac_sp[d2] == pytest.approx(0.5 * 5.0 * 9.81 / (4 * 20.0))
         assert np.all(f.torque_cmd[d2] == 0.0)
+
+
+def broken_law(sp, state, airframe, params, memory, dt_s):
+    """A law with a bug: it returns the wrong type."""
+    return sp, {"calls": memory["calls"]}
+
+
+def test_a_controller_law_that_breaks_is_named_in_the_error(reg):
+    local = Registry()
+    for group in GROUPS:
+        for key, entry in reg.entries[group].items():
+            if key != "hover_only":
+                local.add(group, key, entry.spec, entry.provider)
+
+    @dataclass(frozen=True)
+    class BrokenParams:
+        gain: Annotated[float, Ge(0.0), Le(1.0)] = 0.5
+
+    local.add(GROUP_CONTROLLERS, "broken", ControllerPlugin(layer="attitude", params=BrokenParams, law=broken_law,
+                                                            memory={"calls": ((), 0.0)}))
+    with Simulation(load_world_text(world("    controller: {attitude: broken}\n"), "w.yaml", registry=local)) as sim:
+        with pytest.raises(RuntimeError, match=r"attitude controller 'broken' failed at t = 0.0000 s: TypeError: "
+                                               r"it returned a AttitudeSetpoint, not a ThrustTorqueCommand"):
+            sim.step()

@@ -16,12 +16,12 @@ import numpy as np
 from ..components.body import RigidBody
 from ..components.car import CarDynamics
 from ..control.car import bicycle_limit_rad, steer_limit_rad
-from ..control.layers import CarChassis, CarCommand, CarSetpoint, CarState, Layer
+from ..control.layers import CarChassis, CarCommand, CarSetpoint, CarState
 from ..frames import R_from_quat_xyzw
 from ..phases import Phase
 from ..world import StepContext
 from .car_state import DriveMode
-from .controllers import ControllerSystem, finite_or_zero, register_layer
+from .controllers import ControllerSystem, finite_or_zero
 from .fleet_system import stack_params, take_params
 
 
@@ -100,6 +100,6 @@ class DriveControllerSystem(ControllerSystem):
         f.car_brake[r] = brake
 
 
-register_layer(Layer.DRIVE, DriveControllerSystem, (CarDynamics, RigidBody))
+DRIVE_REQUIRES = (CarDynamics, RigidBody)     # the components of a drive controller's rows, besides its params
 
-__all__ = ["DriveControllerSystem"]
+__all__ = ["DRIVE_REQUIRES", "DriveControllerSystem"]

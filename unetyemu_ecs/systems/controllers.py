@@ -33,7 +33,8 @@ from ..components.body import RigidBody
 from ..components.flight import GuidanceLimits, QuadrotorMotors
 from ..control.attitude import manual_to_setpoints
 from ..control.mixer import torque_per_unit_cmd_flu_n_m
-from ..control.layers import (Airframe, AttitudeSetpoint, DroneState, Layer, PositionSetpoint, ThrustTorqueCommand)
+from ..control.layers import (OUTPUT_OF_LAYER, Airframe, AttitudeSetpoint, DroneState, Layer, PositionSetpoint,
+                              ThrustTorqueCommand)
 from ..phases import Phase
 from ..plugins import ControllerPlugin
 from ..units import GRAVITY_M_S2
@@ -86,8 +87,17 @@ class ControllerSystem(FleetSystem):
             getattr(ctx.fleet, arr)[rows] = float(self.plugin.memory[name][1])
 
     def call_law(self, ctx: StepContext, setpoint: Any, state: Any, frame: Any, params: Any, rows: np.ndarray) -> Any:
-        command, memory = self.plugin.law(setpoint, state, frame, params, self.read_memory(ctx, rows), ctx.dt_s)
-        self.write_memory(ctx, rows, memory)
+        """Run the law for ``rows``, store its memory and return its command; a law that fails or
+        returns something else than its layer's command type is reported by name."""
+        layer = self.plugin.layer
+        try:
+            command, memory = self.plugin.law(setpoint, state, frame, params, self.read_memory(ctx, rows), ctx.dt_s)
+            if not isinstance(command, OUTPUT_OF_LAYER[layer]):
+                raise TypeError(f"it returned a {type(command).__name__}, not a {OUTPUT_OF_LAYER[layer].__name__}")
+            self.write_memory(ctx, rows, memory)
+        except Exception as exc:
+            raise RuntimeError(f"{layer} controller {self.key!r} failed at t = {ctx.sim_time_s:.4f} s: "
+                               f"{type(exc).__name__}: {exc}") from exc
         return command
 
 
@@ -205,28 +215,23 @@ class MixerSystem(DroneControllerSystem):
         f.motor_frac_cmd[r] = np.clip(finite_or_zero(out.motor_frac), 0.0, 1.0)
 
 
-_DRONE_REQUIRES = (QuadrotorMotors, GuidanceLimits, RigidBody)
-_LAYER_BASES: dict[Layer, tuple[type[ControllerSystem], tuple[type, ...]]] = {
-    Layer.POSITION: (PositionControllerSystem, _DRONE_REQUIRES),
-    Layer.ATTITUDE: (AttitudeControllerSystem, _DRONE_REQUIRES),
-    Layer.MIXER: (MixerSystem, _DRONE_REQUIRES),
-}
-
-
-def register_layer(layer: Layer, base: type[ControllerSystem], requires: tuple[type, ...]) -> None:
-    """Make ``base`` the system class of ``layer`` (used by the car module for the drive layer)."""
-    _LAYER_BASES[layer] = (base, requires)
+def layer_system(layer: Layer) -> tuple[type[ControllerSystem], tuple[type, ...]]:
+    """The system class of ``layer`` and the components (besides the controller's params) of its rows."""
+    drone = (QuadrotorMotors, GuidanceLimits, RigidBody)
+    if layer == Layer.DRIVE:
+        car_drive = import_module(".car_drive", __package__)   # it builds on this module
+        return car_drive.DriveControllerSystem, car_drive.DRIVE_REQUIRES
+    return {Layer.POSITION: PositionControllerSystem, Layer.ATTITUDE: AttitudeControllerSystem,
+            Layer.MIXER: MixerSystem}[layer], drone
 
 
 def controller_system(key: str, plugin: ControllerPlugin) -> ControllerSystem:
     """A new system running controller ``key`` (a class of its own: esper keeps one system per class)."""
-    import_module(".car_drive", __package__)      # registers the drive layer (it imports this module)
-
-    base, requires = _LAYER_BASES[plugin.layer]
+    base, requires = layer_system(plugin.layer)
     cls = type(f"{base.__name__}[{key}]", (base,), {"plugin": plugin, "key": key,
                                                     "requires": (plugin.params, *requires)})
     return cls()
 
 
 __all__ = ["AttitudeControllerSystem", "ControllerSystem", "MixerSystem", "PositionControllerSystem",
-           "box_inertia_flu_kg_m2", "controller_system", "register_layer"]
+           "box_inertia_flu_kg_m2", "controller_system", "finite_or_zero", "layer_system"]
