@@ -63,13 +63,24 @@ class Route:
 
 
 # name -> (tail shape, dtype, fill)
+# name -> (tail shape, dtype, fill); each group names the systems that write it. Hand-overs between
+# them are explicit: the mission sets payload_request and clears payload_result before the payload
+# bay answers in it; the mission sets charging (and a step's charge_power_w), the energy system
+# turns it into energy; the payload bay (overweight) and the energy system (empty) clear motors_enabled.
 FLIGHT_ARRAYS: dict[str, tuple[tuple[int, ...], type, float]] = {
+    # commands and missions (FlightCommandSystem, MissionSystem, EmergencyLandingSystem)
     "flight_mode": ((), np.int8, 0),
     "cmd_hold_until_s": ((), np.float64, np.inf),     # sim time a streamed teleop/cmd_vel lapses (inf: held)
-    "motors_enabled": ((), np.bool_, True),
+    "motors_enabled": ((), np.bool_, True),            # False: motors stop (overweight payload, empty battery)
     "stick": ((4,), np.float64, 0.0),                 # [throttle, pitch, roll, yaw] in [-1, 1]
-    "route_stamp": ((), np.int64, 0),                 # bumped whenever `route` changes
+    "route_stamp": ((), np.int64, 0),                 # bumped whenever `route` changes (set_route)
     "has_route": ((), np.bool_, False),               # `route` is not None
+    "mission_step": ((), np.int64, -1),               # index of the running mission step, -1 none
+    "vel_cmd_flu_m_s": ((3,), np.float64, 0.0),       # VELOCITY mode: [forward, left, up], body frame
+    "yaw_rate_cmd_rad_s": ((), np.float64, 0.0),      # VELOCITY mode: CCW positive
+    "payload_request": ((), np.int8, 0),              # PayloadRequest: what the mission asks of the payload bay
+    "charging": ((), np.bool_, False),                # a recharge step on a pad
+    # route following (RouteFollowingSystem)
     "route_segment": ((), np.int64, 0),
     "arrived": ((), np.bool_, False),                 # within arrival radius of the route's end
     "dist_to_final_m": ((), np.float64, 0.0),
@@ -80,8 +91,6 @@ FLIGHT_ARRAYS: dict[str, tuple[tuple[int, ...], type, float]] = {
     "speed_limit_m_s": ((3,), np.float64, 0.0),       # horizontal, climb, descent caps of the current leg
     "dist_to_go_m": ((), np.float64, 0.0),            # along the route to its end
     "yaw_sp_rad": ((), np.float64, np.nan),           # heading to hold, ENU; NaN: turn at yaw_rate_cmd_rad_s
-    "vel_cmd_flu_m_s": ((3,), np.float64, 0.0),       # VELOCITY mode: [forward, left, up], body frame
-    "yaw_rate_cmd_rad_s": ((), np.float64, 0.0),      # VELOCITY mode: CCW positive
     # attitude-layer setpoint (control.layers.AttitudeSetpoint), from the position layer or the sticks
     "vz_sp_m_s": ((), np.float64, 0.0),
     "roll_sp_rad": ((), np.float64, 0.0),
@@ -91,22 +100,22 @@ FLIGHT_ARRAYS: dict[str, tuple[tuple[int, ...], type, float]] = {
     "thrust_frac_sp": ((), np.float64, 0.0),          # collective, fraction of 4 F_max
     "torque_cmd": ((3,), np.float64, 0.0),            # normalised [roll, pitch, yaw]
     "motor_frac_cmd": ((4,), np.float64, 0.0),        # the mixer's output: FL, FR, BR, BL fractions of F_max
+    # motors (MotorSystem)
     "motor_thrust_cmd_n": ((4,), np.float64, 0.0),    # FL, FR, BR, BL
     "motor_thrust_n": ((4,), np.float64, 0.0),        # after lag: what is applied
+    # energy (EnergySystem)
     "power_w": ((), np.float64, 0.0),
     "power_filt_w": ((), np.float64, 0.0),
     "energy_j": ((), np.float64, 0.0),                # left in the battery
     "energy_used_j": ((), np.float64, 0.0),
     "soc_frac": ((), np.float64, 1.0),
     "remaining_time_s": ((), np.float64, np.inf),
-    "charging": ((), np.bool_, False),
     "charge_power_w": ((), np.float64, 0.0),
     "low_battery": ((), np.bool_, False),
+    # payload bay (PayloadSystem)
     "payload_kg": ((), np.float64, 0.0),
-    "payload_entity": ((), np.int64, -1),             # esper entity of the package carried (-1: none); PayloadSystem
-    "payload_request": ((), np.int8, 0),
-    "payload_result": ((), np.int8, 0),
-    "mission_step": ((), np.int64, -1),               # index of the running mission step, -1 none
+    "payload_entity": ((), np.int64, -1),             # esper entity of the package carried (-1: none)
+    "payload_result": ((), np.int8, 0),               # PayloadResult of the last request
 }
 
 
