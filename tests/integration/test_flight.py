@@ -273,17 +273,20 @@ def test_low_battery_ends_the_mission_and_lands():
 
 def test_recharge_on_a_pad_refills_the_battery_at_the_charger_power():
     comps = """
-      energy: {initial_soc_frac: 0.5, charge_power_w: 2000.0}
+      energy: {initial_soc_frac: 0.5, charge_power_w: 10000.0}
       mission:
         name: charge
         steps:
           - {type: recharge, target_soc_frac: 0.6}
 """
     with Simulation(load_world_text(flat_world(drone("d1", pose="{pad: home}", components=comps)))) as sim:
-        sim.run(until=100.0)
-        status = sim.mission_status("d1")
-        # 10 % of 500 Wh = 50 Wh at (2000 - 15) W net takes about 90.7 s
-        assert status["state"] == "completed"
+        sim.run(until=17.5)
+        # 10 % of 500 Wh = 50 Wh at (10 000 - 15) W net takes 18.03 s: not yet...
+        assert sim.mission_status("d1")["state"] != "completed"
+        assert sim.fleet.soc_frac[sim.row("d1")] == pytest.approx(0.5 + 0.1 * 17.5 / 18.03, abs=0.002)
+        sim.run(until=19.0)
+        # ... and then done, at 60 %
+        assert sim.mission_status("d1")["state"] == "completed"
         assert sim.fleet.soc_frac[sim.row("d1")] == pytest.approx(0.6, abs=0.002)
 
 
@@ -368,7 +371,8 @@ def test_several_pickups_and_deliveries_in_one_run():
           - {type: deliver, waypoints: [{x: 0.0, y: 5.0, z: 0.0}]}
 """
     with Simulation(load_world_text(flat_world(drone("d1", components=mission), packages=packages))) as sim:
-        sim.run(until=120.0)
+        while sim.sim_time_s < 120.0 and sim.mission_status("d1")["state"] != "completed":
+            sim.run(duration=2.0)
         status = sim.mission_status("d1")
         assert status["state"] == "completed", sim.events
         # each package was carried to the other side and set down there
