@@ -13,7 +13,7 @@ Three entry-point groups (docs/architecture.md §2):
     name = the world-file key under ``components``; object = a :class:`SensorPlugin`.
 ``unetyemu_ecs.controllers``
     name = the controller's name, chosen per vehicle and layer under ``controller:``
-    (``controller: {attitude: px4_rate}``); object = a :class:`ControllerPlugin`.
+    (``controller: {attitude: px4_attitude}``); object = a :class:`ControllerPlugin`.
 
 Built-in parts are declared in this project's own ``pyproject.toml`` and found the same way as
 third-party ones. A plugin that fails to import is not fatal: the registry records why, ``unetyemu
@@ -161,7 +161,8 @@ class ControllerPlugin:
     rows; the law receives it with every field stacked into an (N,) array, so fields must be
     numbers. ``memory`` declares the law's per-vehicle state: name -> (tail shape, initial value);
     it lives in the fleet arrays as ``ctl_<params class name>_<name>`` and is reset to the initial
-    value while the vehicle is disarmed or parked.
+    value while a drone is disarmed (attitude and mixer layers) and whenever a vehicle enters a
+    position- or speed-controlled mode (position layer: AUTO, VELOCITY; drive layer: ROUTE, VELOCITY).
     """
 
     layer: Layer

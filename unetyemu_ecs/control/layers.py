@@ -23,8 +23,9 @@ of one), with no esper and no PyBullet::
 ``params`` is the controller's parameter dataclass with every field stacked into an (N,) array;
 ``memory`` maps each name the controller declared to an (N, ...) array of its per-vehicle state
 (integrators, filters) and the law returns the new values. The framework keeps the memory in the
-fleet arrays, resets a vehicle's memory to its initial values while it is disarmed (or parked), and
-zeroes a disarmed drone's command. Shapes are (N,) unless given; frames and units are in the names:
+fleet arrays, resets it to its initial values while a drone is disarmed and when a vehicle enters a
+position- or speed-controlled mode (AUTO, VELOCITY; a car's ROUTE, VELOCITY), and zeroes a disarmed
+drone's command. Shapes are (N,) unless given; frames and units are in the names:
 ENU world frame (x east, y north, z up), FLU body frame (x forward, y left, z up), yaw 0 = east,
 counter-clockwise; positive roll = right side down, positive pitch = nose down.
 """
