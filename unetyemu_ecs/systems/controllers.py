@@ -213,6 +213,9 @@ class MixerSystem(DroneControllerSystem):
         cmd = ThrustTorqueCommand(f.thrust_frac_sp[r], f.torque_cmd[r])
         out = self.call_law(ctx, cmd, self.state(ctx, r), self.airframe, self.params, r)
         f.motor_frac_cmd[r] = np.clip(finite_or_zero(out.motor_frac), 0.0, 1.0)
+        disarmed = f.flight_mode[r] == FlightMode.DISARMED
+        if disarmed.any() and self._memory_names:
+            self.reset_memory(ctx, r[disarmed])
 
 
 def layer_system(layer: Layer) -> tuple[type[ControllerSystem], tuple[type, ...]]:
