@@ -20,7 +20,9 @@ from typing import Annotated
 import numpy as np
 
 from ..config.schema import Ge, Gt, Le
+from ..frames import euler_rpy_from_quat_xyzw
 from ..units import GRAVITY_M_S2
+from .layers import Airframe, AttitudeSetpoint, DroneState, ThrustTorqueCommand
 
 MIN_COS_TILT = float(np.cos(np.deg2rad(60.0)))   # tilt compensation stops growing beyond 60 deg
 
@@ -100,13 +102,11 @@ def manual_to_setpoints(stick: np.ndarray, lim_tilt_rad: np.ndarray, lim_climb_m
     return vz_sp, s[:, 2] * lim_tilt_rad, s[:, 1] * lim_tilt_rad, s[:, 3] * lim_yaw_rate_rad_s
 
 
-def angle_rate_pd_law(sp, state, airframe, params: StabilizerGains, memory: dict[str, np.ndarray], dt_s: float):
+def angle_rate_pd_law(sp: AttitudeSetpoint, state: DroneState, airframe: Airframe, params: StabilizerGains,
+                      memory: dict[str, np.ndarray], dt_s: float) -> tuple[ThrustTorqueCommand, dict[str, np.ndarray]]:
     """The built-in attitude layer ``angle_rate_pd`` (the paper's layer 2): AttitudeSetpoint ->
     ThrustTorqueCommand, by :func:`vertical_speed_to_thrust_frac` (memory ``vz_int_m_s``) and
     :func:`attitude_to_torque_cmd`."""
-    from ..frames import euler_rpy_from_quat_xyzw
-    from .layers import ThrustTorqueCommand
-
     roll, pitch, _ = euler_rpy_from_quat_xyzw(state.quat_enu_flu_xyzw)
     cos_tilt = np.cos(roll) * np.cos(pitch)
     thrust, vz_int = vertical_speed_to_thrust_frac(sp.vz_m_s, state.vel_enu_m_s[:, 2], state.acc_enu_m_s2[:, 2],

@@ -14,7 +14,8 @@ from typing import Annotated
 import numpy as np
 
 from ..config.schema import Ge, Gt, Le
-from ..units import wrap_angle_rad
+from ..units import GRAVITY_M_S2, wrap_angle_rad
+from .layers import CarChassis, CarCommand, CarSetpoint, CarState
 
 SPEED_FOR_STEER_SCALE_M_S = 50.0   # the steering limit falls linearly to its scale at this speed
 
@@ -205,7 +206,8 @@ __all__ = [
 ]
 
 
-def speed_pi_steer_law(sp, state, chassis, params: SpeedSteerGains, memory: dict[str, np.ndarray], dt_s: float):
+def speed_pi_steer_law(sp: CarSetpoint, state: CarState, chassis: CarChassis, params: SpeedSteerGains,
+                       memory: dict[str, np.ndarray], dt_s: float) -> tuple[CarCommand, dict[str, np.ndarray]]:
     """The built-in drive layer ``speed_pi_steer``: CarSetpoint -> CarCommand.
 
     Speed by :func:`speed_to_throttle_brake` (PI, memory ``speed_int``, with rolling resistance fed
@@ -214,9 +216,6 @@ def speed_pi_steer_law(sp, state, chassis, params: SpeedSteerGains, memory: dict
     value that reproduces the acceleration of the throttle and brake applied now, so taking over
     from manual driving or the parking brake causes no jerk.
     """
-    from ..units import GRAVITY_M_S2
-    from .layers import CarCommand
-
     v = state.speed_m_s
     integral = memory["speed_int"].copy()
     fresh = memory["engaged"] < 0.5

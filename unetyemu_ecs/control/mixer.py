@@ -21,6 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .layers import Airframe, DroneState, MotorCommand, ThrustTorqueCommand
+
 MOTOR_NAMES = ("FL", "FR", "BR", "BL")
 
 # columns: roll, pitch, yaw (paper eq. 2 with r, p, y)
@@ -106,8 +108,7 @@ class XQuadMixer:
     x_quad_priority}``)."""
 
 
-def x_quad_priority_law(cmd, state, airframe, params: XQuadMixer, memory: dict[str, np.ndarray], dt_s: float):
+def x_quad_priority_law(cmd: ThrustTorqueCommand, state: DroneState, airframe: Airframe, params: XQuadMixer,
+                        memory: dict[str, np.ndarray], dt_s: float) -> tuple[MotorCommand, dict[str, np.ndarray]]:
     """The built-in mixer layer ``x_quad_priority``: ThrustTorqueCommand -> MotorCommand by :func:`mix_x_quad`."""
-    from .layers import MotorCommand
-
     return MotorCommand(mix_x_quad(cmd.thrust_frac, cmd.torque_cmd)), {}

@@ -14,7 +14,9 @@ from typing import Annotated
 import numpy as np
 
 from ..config.schema import Ge, Gt, Le
+from ..frames import yaw_rad_from_quat_xyzw
 from ..units import GRAVITY_M_S2, wrap_angle_rad
+from .layers import Airframe, AttitudeSetpoint, DroneState, PositionSetpoint
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -124,7 +126,8 @@ def body_velocity_to_enu_sp(vel_flu_m_s: np.ndarray, yaw_rad: np.ndarray, lim_cl
     return np.stack([c * fwd - s * left, s * fwd + c * left, np.clip(up, -lim_descent_m_s, lim_climb_m_s)], axis=1)
 
 
-def cascade_pid_law(sp, state, airframe, params: GuidanceGains, memory: dict[str, np.ndarray], dt_s: float):
+def cascade_pid_law(sp: PositionSetpoint, state: DroneState, airframe: Airframe, params: GuidanceGains,
+                    memory: dict[str, np.ndarray], dt_s: float) -> tuple[AttitudeSetpoint, dict[str, np.ndarray]]:
     """The built-in position layer ``cascade_pid``: PositionSetpoint -> AttitudeSetpoint.
 
     Rows flying to a position: line-of-sight velocity (:func:`position_to_velocity_sp`) within the
@@ -133,9 +136,6 @@ def cascade_pid_law(sp, state, airframe, params: GuidanceGains, memory: dict[str
     mapping (:func:`accel_to_tilt_sp`); heading P (:func:`heading_to_yaw_rate_sp`) or the commanded
     yaw rate, within the yaw-rate limit.
     """
-    from ..frames import yaw_rad_from_quat_xyzw
-    from .layers import AttitudeSetpoint
-
     to_pos = sp.flies_to_position
     pos = state.pos_enu_m
     target = np.where(to_pos[:, None], sp.pos_enu_m, pos)
