@@ -35,6 +35,7 @@ class DriveControllerSystem(ControllerSystem):
 
     phase = Phase.STABILIZE
     order = 20
+    mode_array = "drive_mode"
 
     def gather(self, ctx: StepContext) -> None:
         super().gather(ctx)
@@ -46,7 +47,6 @@ class DriveControllerSystem(ControllerSystem):
             track_m=dyn.track_m, wheel_radius_m=dyn.wheel_radius_m, max_drive_torque_n_m=dyn.max_drive_torque_n_m,
             max_brake_torque_n_m=dyn.max_brake_torque_n_m, top_speed_m_s=dyn.top_speed_m_s,
             rolling_resistance_coeff=dyn.rolling_resistance_coeff)
-        self._mode_seen = ctx.fleet.drive_mode[self.rows].copy()
 
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
@@ -57,10 +57,7 @@ class DriveControllerSystem(ControllerSystem):
         f.car_speed_m_s[r] = v
         mode = f.drive_mode[r]
         controlled = (mode == DriveMode.VELOCITY) | (mode == DriveMode.ROUTE)
-        entered = controlled & (mode != self._mode_seen)
-        self._mode_seen = mode.copy()
-        if entered.any():
-            self.reset_memory(ctx, r[entered])
+        self.restart_on_entry(ctx, mode, controlled)
 
         throttle = np.zeros(r.size)
         brake = np.zeros(r.size)

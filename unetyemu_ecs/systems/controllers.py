@@ -62,6 +62,7 @@ class ControllerSystem(FleetSystem):
 
     plugin: ClassVar[ControllerPlugin]
     key: ClassVar[str] = ""
+    mode_array: ClassVar[str] = ""     # fleet array of the mode whose entry restarts the memory ("": none)
 
     def gather(self, ctx: StepContext) -> None:
         f = ctx.fleet
@@ -71,6 +72,16 @@ class ControllerSystem(FleetSystem):
             array_name = f"ctl_{self.plugin.params.__name__}_{name}"
             f.declare(array_name, tuple(tail), np.float64, float(initial))
             self._memory_names[name] = array_name
+        if self.mode_array:
+            self._mode_seen = getattr(f, self.mode_array)[self.rows].copy()
+
+    def restart_on_entry(self, ctx: StepContext, mode: np.ndarray, engaged: np.ndarray) -> None:
+        """Reset the memory of the rows that entered a mode this layer controls since the last step
+        (``mode``: the rows' modes now, from ``mode_array``; ``engaged``: the rows the layer controls)."""
+        entered = engaged & (mode != self._mode_seen)
+        self._mode_seen = mode.copy()
+        if entered.any():
+            self.reset_memory(ctx, self.rows[entered])
 
     def read_memory(self, ctx: StepContext, rows: np.ndarray) -> dict[str, np.ndarray]:
         return {name: getattr(ctx.fleet, arr)[rows] for name, arr in self._memory_names.items()}
@@ -141,19 +152,13 @@ class PositionControllerSystem(DroneControllerSystem):
 
     phase = Phase.GUIDANCE
     order = 10
-
-    def gather(self, ctx: StepContext) -> None:
-        super().gather(ctx)
-        self._mode_seen = ctx.fleet.flight_mode[self.rows].copy()
+    mode_array = "flight_mode"
 
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
         mode = f.flight_mode[self.rows]
-        entered = mode != self._mode_seen
-        self._mode_seen = mode.copy()
         active = ((mode == FlightMode.AUTO) & f.has_route[self.rows]) | (mode == FlightMode.VELOCITY)
-        if (entered & active).any():
-            self.reset_memory(ctx, self.rows[entered & active])
+        self.restart_on_entry(ctx, mode, active)
         k = np.flatnonzero(active)
         if k.size == 0:
             return
