@@ -154,12 +154,8 @@ class Simulation:
                     if cls not in classes:
                         classes.append(cls)
         systems += [cls() for cls in classes]
-        controllers: list[str] = []
-        for ent in world.entities:
-            for name, _params in ent.controllers.values():
-                if name not in controllers:
-                    controllers.append(name)
-        systems += [controller_system(name, world.registry.controller_entry(name).spec) for name in controllers]
+        in_use = dict.fromkeys(name for ent in world.entities for name, _params in ent.controllers.values())
+        systems += [controller_system(name, world.registry.controller_entry(name).spec) for name in in_use]
         for key, cfg in world.systems.items():
             systems.append(world.registry.system_entry(key).spec.system(cfg))
         if self.ros2_backend != "off":
@@ -452,26 +448,20 @@ class Simulation:
         Returns the component. Bad keys and parameters raise :class:`ConfigError` naming them."""
         from dataclasses import replace
 
-        from .config.schema import INVALID, SourceMap, convert
+        from .config.schema import INVALID, SourceMap
+        from .config.world_file import resolve_component
         from .vehicles.presets import component_tables
 
         ent = self.definition_of(name)
         where = f"attach({name!r}, {key!r})"
-        reg = self.definition.registry
-        try:
-            entry = reg.component_entry(key)
-        except KeyError as exc:
-            raise ConfigError([Issue(where, None, (key,), exc.args[0])]) from None
         if key == "mission":
             raise ConfigError([Issue(where, None, (key,), "a mission is started with load_mission(), not attached")])
-        if ent.kind not in entry.spec.applies_to:
-            raise ConfigError([Issue(where, None, (key,), f"component {key!r} cannot be attached to a {ent.kind} "
-                                                          f"(applies to: {', '.join(sorted(entry.spec.applies_to))})")])
         block = {**component_tables(ent.params).get(key, {}), **params} if ent.kind != "package" else dict(params)
         issues: list[Issue] = []
-        comp = convert(block, entry.spec.component, (key,), SourceMap(where), issues)
+        comp = resolve_component(key, block, ent.kind, self.definition.registry, (key,), SourceMap(where), issues)
         if comp is INVALID:
             raise ConfigError(issues)
+        entry = self.definition.registry.component_entry(key)
         if isinstance(comp, SensorSpec) and not ent.ros2:
             comp = replace(comp, ros2=False)
         eid = self.entity(name)

@@ -426,17 +426,7 @@ def _resolve_entity(group: str, i: int, item: VehicleSpec | PackageSpec, layout:
         for key in wanted:
             blocks.setdefault(key, {})
     for key, block in blocks.items():
-        cpath: Path = (group, i, "components", key)
-        try:
-            entry = registry.component_entry(key)
-        except KeyError as exc:
-            issues.append(src.issue(cpath, exc.args[0]))
-            continue
-        if kind not in entry.spec.applies_to:
-            issues.append(src.issue(cpath, f"component {key!r} cannot be attached to a {kind} "
-                                           f"(applies to: {', '.join(sorted(entry.spec.applies_to))})"))
-            continue
-        comp = convert(block, entry.spec.component, cpath, src, issues)
+        comp = resolve_component(key, block, kind, registry, (group, i, "components", key), src, issues)
         if comp is not INVALID:
             components[key] = comp
 
@@ -451,6 +441,23 @@ def _resolve_entity(group: str, i: int, item: VehicleSpec | PackageSpec, layout:
         components = {k: replace(c, ros2=False) if isinstance(c, SensorSpec) else c for k, c in components.items()}
     return EntityDefinition(item.name, kind, preset_name, index, pos, float(yaw_rad), params, components, on_ros2,
                             controllers)
+
+
+def resolve_component(key: str, block: Any, kind: str, registry: Registry, path: Path, src: SourceMap,
+                      issues: list[Issue]) -> Any:
+    """The component or sensor ``key`` with the parameter ``block`` for a ``kind`` entity, or
+    :data:`INVALID` with the reasons in ``issues`` (unknown key, a kind it does not fit, bad
+    parameters). Used by the loader and by ``Simulation.attach``."""
+    try:
+        entry = registry.component_entry(key)
+    except KeyError as exc:
+        issues.append(src.issue(path, exc.args[0]))
+        return INVALID
+    if kind not in entry.spec.applies_to:
+        issues.append(src.issue(path, f"component {key!r} cannot be attached to a {kind} "
+                                      f"(applies to: {', '.join(sorted(entry.spec.applies_to))})"))
+        return INVALID
+    return convert(block, entry.spec.component, path, src, issues)
 
 
 def _resolve_controllers(kind: str, chosen: dict[str, Any], path: Path, registry: Registry, src: SourceMap,
