@@ -15,6 +15,7 @@ change; the system keeps the list it gathered from and compares identities.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any, ClassVar
 
 import esper
@@ -71,15 +72,9 @@ class FleetSystem(esper.Processor):
         """One step of work on ``rows`` (M > 0)."""
         raise NotImplementedError(f"{type(self).__name__} must implement update(ctx)")
 
-    def component_of(self, entity: int, component_type: type) -> Any:
-        """Another component of one of this system's entities (for rare per-entity lookups in gather)."""
-        return esper.component_for_entity(int(entity), component_type)
-
 
 def stack_params(items: list[Any], cls: type) -> Any:
     """Stack M parameter dataclasses into one ``cls`` whose fields are (M, ...) float arrays (for vectorised laws)."""
-    import dataclasses
-
     names = [f.name for f in dataclasses.fields(cls)]
     if not items:
         return cls(**{n: np.zeros(0) for n in names})
@@ -88,8 +83,6 @@ def stack_params(items: list[Any], cls: type) -> Any:
 
 def take_params(stacked: Any, idx: np.ndarray) -> Any:
     """Select the rows ``idx`` of a stacked parameter dataclass."""
-    import dataclasses
-
     return dataclasses.replace(stacked, **{f.name: getattr(stacked, f.name)[idx]
                                            for f in dataclasses.fields(stacked)})
 
