@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import subprocess
 import sys
 import textwrap
 from pathlib import Path
@@ -17,6 +18,22 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 WORLDS = REPO_ROOT / "worlds"
+
+
+def pip_install_plugin(plugin_dir: Path, target: Path) -> Path:
+    """pip-install the plugin package ``plugin_dir`` into the private directory ``target`` (no
+    dependencies, no network), as a user would install it; return ``target``."""
+    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation",
+                    "--target", str(target), str(plugin_dir)], check=True, capture_output=True, timeout=300)
+    return target
+
+
+def run_python_with_site(site: Path, code: str, timeout_s: float = 300.0) -> subprocess.CompletedProcess:
+    """Run ``code`` in a fresh interpreter with ``site`` (a pip ``--target`` directory) first on its path."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(site), str(REPO_ROOT), env.get("PYTHONPATH", "")])
+    return subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                          timeout=timeout_s, cwd=REPO_ROOT)
 
 
 def unetyemu_command() -> list[str]:

@@ -12,9 +12,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import subprocess
-import sys
 import textwrap
 from pathlib import Path
 from typing import Any
@@ -22,7 +19,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from ..conftest import REPO_ROOT, WORLDS
+from ..conftest import REPO_ROOT, WORLDS, pip_install_plugin, run_python_with_site
 
 PLUGIN_DIR = REPO_ROOT / "plugins" / "px4_attitude"
 
@@ -43,20 +40,14 @@ RESULT = {"provider": ENTRY.provider, "law_file": sys.modules[ENTRY.spec.law.__m
 @pytest.fixture(scope="module")
 def plugin_site(tmp_path_factory) -> Path:
     """pip-install the px4_attitude plugin into a private directory (no dependencies, no network)."""
-    target = tmp_path_factory.mktemp("px4_site")
-    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation",
-                    "--target", str(target), str(PLUGIN_DIR)], check=True, capture_output=True, timeout=300)
-    return target
+    return pip_install_plugin(PLUGIN_DIR, tmp_path_factory.mktemp("px4_site"))
 
 
 def run_with_plugin(site: Path, code: str, timeout_s: float = 600.0) -> dict[str, Any]:
     """Run ``PREAMBLE + code`` with the plugin's site first on the path; ``code`` fills the dict
     ``RESULT``, printed as JSON at the end. Checks that the plugin came from ``site``."""
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(site), str(REPO_ROOT), env.get("PYTHONPATH", "")])
     script = textwrap.dedent(PREAMBLE) + textwrap.dedent(code) + "\nprint(json.dumps(RESULT))\n"
-    res = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True,
-                         timeout=timeout_s, cwd=REPO_ROOT)
+    res = run_python_with_site(site, script, timeout_s)
     assert res.returncode == 0, res.stderr[-4000:]
     out = json.loads(res.stdout.strip().splitlines()[-1])
     assert out["provider"] == "unetyemu-px4-attitude" and out["layer"] == "attitude", out

@@ -4,16 +4,14 @@ and changes the physics the way its model says."""
 from __future__ import annotations
 
 import json
-import os
 import subprocess
-import sys
 import textwrap
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from ..conftest import REPO_ROOT
+from ..conftest import REPO_ROOT, pip_install_plugin, run_python_with_site
 
 PLUGIN_DIR = REPO_ROOT / "plugins" / "wind_gust"
 
@@ -35,17 +33,11 @@ packages:
 @pytest.fixture(scope="module")
 def plugin_site(tmp_path_factory) -> Path:
     """pip-install the example plugin into a private directory (no dependencies, no network)."""
-    target = tmp_path_factory.mktemp("plugin_site")
-    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation",
-                    "--target", str(target), str(PLUGIN_DIR)], check=True, capture_output=True, timeout=300)
-    return target
+    return pip_install_plugin(PLUGIN_DIR, tmp_path_factory.mktemp("plugin_site"))
 
 
 def _run_with_plugin(site: Path, code: str) -> subprocess.CompletedProcess:
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(site), str(REPO_ROOT), env.get("PYTHONPATH", "")])
-    return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], env=env, capture_output=True, text=True,
-                          timeout=300, cwd=REPO_ROOT)
+    return run_python_with_site(site, textwrap.dedent(code))
 
 
 def test_installed_plugin_is_listed_by_unetyemu_plugins(plugin_site):
