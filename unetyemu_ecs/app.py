@@ -35,6 +35,7 @@ from .systems.state import StateReadbackSystem
 from .transport.ros2.bridge import resolve_backend
 from .config.limits import MAX_DURATION_S
 from .mission import MissionSpec, mission_reference_issues, parse_mission
+from .navigation.commands_api import NavigationApi
 from .transport.bus import Arm, CmdVel, Drive, DriveRoute, Inbox, LoadMission, SetTarget, Teleop
 from .vehicles.factory import spawn_entity
 from .world import EcsWorld, SimServices, StepContext
@@ -77,7 +78,7 @@ class RunStats:
 ProgressFn = Callable[[float, float, float], None]   # (sim_time_s, end_time_s, wall_elapsed_s)
 
 
-class Simulation:
+class Simulation(NavigationApi):
     """One simulated world: an esper world, a PyBullet client, the sim clock and the fleet arrays.
 
     Parameters

@@ -20,7 +20,7 @@ from .sensors.lidar import LidarSensor, LidarSystem
 from .sensors.odometry import OdometrySensor, OdometrySystem
 from .systems.actuate import AeroDragSystem
 from .systems.car import CarActuationSystem, CarCommandSystem, CarGuidanceSystem
-from .systems.commands import FlightCommandSystem
+from .systems.flight_commands import FlightCommandSystem
 from .systems.energy import EnergySystem
 from .systems.guidance import RouteFollowingSystem
 from .systems.mission import EmergencyLandingSystem, MissionSystem

@@ -18,6 +18,7 @@ import esper
 import numpy as np
 
 from .phases import Phase, priority
+from .transport.api import CommandResult, CommandStatus
 
 if TYPE_CHECKING:
     from .fleet import FleetState
@@ -45,6 +46,7 @@ class SimServices:
     entities : world-file name -> esper entity id
     events : (sim_time_s, vehicle, message) notices of rare events (mission steps, payload), in order
     pending : commands drained from the inbox this step, not yet taken by a command system
+    results : CommandResult of every command applied or refused, in order (append-only, like events)
     sensors : sensor messages (newest per vehicle and sensor; this step's for publishers)
     gravity_enu_m_s2 : the world's gravity vector
     origin : the world's geodetic origin (WGS84) of the ENU frame
@@ -55,6 +57,7 @@ class SimServices:
     entities: dict[str, int]
     events: list[tuple[float, str, str]]
     pending: list[Any] = field(default_factory=list)
+    results: list[Any] = field(default_factory=list)
     sensors: SensorOutputs = field(default_factory=_sensor_outputs)
     gravity_enu_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.81)
     origin: GeodeticOrigin | None = None
@@ -68,6 +71,16 @@ class SimServices:
 
             self._mesh = triangulate(self.layout)
         return self._mesh
+
+    def report(self, sim_time_s: float, msg: Any, status: Any, reason: str = "", text: str = "") -> None:
+        """Record the result of command ``msg`` (:class:`~unetyemu_ecs.transport.api.CommandResult`); a
+        refusal or failure also goes to the event log as ``rejected <kind> command: <text>``."""
+        self.results.append(CommandResult(msg.command_id, msg.vehicle, msg.kind, msg.source, CommandStatus(status),
+                                          reason, text, round(sim_time_s, 6)))
+        if status in (CommandStatus.REJECTED_INVALID, CommandStatus.REJECTED_STATE):
+            self.note(sim_time_s, msg.vehicle, f"rejected {msg.kind} command: {text or reason}")
+        elif status == CommandStatus.FAILED:
+            self.note(sim_time_s, msg.vehicle, f"{msg.kind} command failed: {text or reason}")
 
     def note(self, sim_time_s: float, vehicle: str, message: str) -> None:
         """Record a rare event (never called per step in steady state)."""

@@ -24,6 +24,46 @@ class FlightMode(IntEnum):
     VELOCITY = 3   # body-frame velocity + yaw rate (ROS cmd_vel) -> guidance velocity loop
 
 
+class NavState(IntEnum):
+    """What the drone is doing, in PX4's terms (its navigation state); reported over MAVLink as PX4's
+    custom main/sub mode, and usable from Python and ROS 2 alike. ``flight_mode`` says which control
+    path flies it (AUTO route, VELOCITY, MANUAL sticks); ``nav_state`` says why."""
+
+    HOLD = 0           # brake and hold position (PX4 AUTO.LOITER); also what a disarmed drone on the ground reports
+    TAKEOFF = 1        # climb vertically to the takeoff altitude, then HOLD
+    LAND = 2           # descend, detect touchdown, disarm after COM_DISARM_LAND
+    RTL = 3            # climb to RTL_RETURN_ALT, fly to home / the closest rally point, land
+    MISSION = 4        # run the mission (uploaded, or loaded from JSON)
+    OFFBOARD = 5       # follow an external setpoint stream (SET_POSITION_TARGET_*, cmd_vel)
+    POSCTL = 6         # sticks command velocity; centred sticks hold position
+    MANUAL = 7         # sticks command attitude and thrust (teleop)
+    ORBIT = 8          # circle a point
+    FOLLOW_TARGET = 9  # follow a moving target's position stream
+    GOTO = 10          # fly to one target (API set_target, ROS 2 target, DO_REPOSITION), then hold
+
+
+class LandedState(IntEnum):
+    """Landed state derived from the physics (values of MAVLink's MAV_LANDED_STATE)."""
+
+    UNDEFINED = 0
+    ON_GROUND = 1
+    IN_AIR = 2
+    TAKEOFF = 3
+    LANDING = 4
+
+
+class MissionState(IntEnum):
+    """State of a drone's mission (``mission_state``), as a number transports can read."""
+
+    NONE = 0          # no mission
+    STORED = 1        # uploaded, not started
+    RUNNING = 2
+    PAUSED = 3
+    COMPLETED = 4
+    FAILED = 5
+    CANCELLED = 6
+
+
 class PayloadRequest(IntEnum):
     """What the mission asks the payload system to do this step (``payload_request``)."""
 
@@ -80,6 +120,12 @@ FLIGHT_ARRAYS: dict[str, tuple[tuple[int, ...], type, float]] = {
     "yaw_rate_cmd_rad_s": ((), np.float64, 0.0),      # VELOCITY mode: CCW positive
     "payload_request": ((), np.int8, 0),              # PayloadRequest: what the mission asks of the payload bay
     "charging": ((), np.bool_, False),                # a recharge step on a pad
+    # navigation (the navigator and landed detector; docs/architecture.md §7)
+    "nav_state": ((), np.int8, 0),                    # NavState
+    "landed_state": ((), np.int8, 0),                 # LandedState, from contact and motion
+    "home_enu_m": ((3,), np.float64, 0.0),            # home position (set at first fix and at arming)
+    "home_set": ((), np.bool_, False),
+    "mission_state": ((), np.int8, 0),                # MissionState of the drone's mission
     # route following (RouteFollowingSystem)
     "route_segment": ((), np.int64, 0),
     "arrived": ((), np.bool_, False),                 # within arrival radius of the route's end

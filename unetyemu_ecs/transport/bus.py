@@ -13,6 +13,8 @@ publisher goes quiet. ``None`` holds the command until the next one (Python API 
 
 from __future__ import annotations
 
+import dataclasses
+import itertools
 import queue
 from dataclasses import dataclass
 from typing import Any
@@ -27,6 +29,8 @@ class SetTarget:
     yaw_rad: float | None
     speed_m_s: float | None
     kind: str = "target"
+    command_id: int = 0              # set by Inbox.submit; its CommandResult carries it
+    source: str = "api"              # who sent it: api, ros2, mavlink, ...
 
 
 @dataclass(frozen=True, slots=True)
@@ -36,6 +40,8 @@ class LoadMission:
     vehicle: str
     mission: Any
     kind: str = "mission"
+    command_id: int = 0              # set by Inbox.submit; its CommandResult carries it
+    source: str = "api"              # who sent it: api, ros2, mavlink, ...
 
 
 @dataclass(frozen=True, slots=True)
@@ -46,6 +52,8 @@ class Teleop:
     stick: tuple[float, float, float, float]
     hold_s: float | None = None      # lapses this long [s, sim time] after it is applied (None: held)
     kind: str = "teleop"
+    command_id: int = 0              # set by Inbox.submit; its CommandResult carries it
+    source: str = "api"              # who sent it: api, ros2, mavlink, ...
 
 
 @dataclass(frozen=True, slots=True)
@@ -54,7 +62,10 @@ class Arm:
 
     vehicle: str
     armed: bool
+    force: bool = False              # skip the arming checks (PX4: param2 = 21196)
     kind: str = "arm"
+    command_id: int = 0              # set by Inbox.submit; its CommandResult carries it
+    source: str = "api"              # who sent it: api, ros2, mavlink, ...
 
 
 @dataclass(frozen=True, slots=True)
@@ -68,6 +79,8 @@ class Drive:
     steering: float
     hold_s: float | None = None      # lapses this long [s, sim time] after it is applied (None: held)
     kind: str = "teleop"
+    command_id: int = 0              # set by Inbox.submit; its CommandResult carries it
+    source: str = "api"              # who sent it: api, ros2, mavlink, ...
 
 
 @dataclass(frozen=True, slots=True)
@@ -83,6 +96,8 @@ class CmdVel:
     up_m_s: float = 0.0
     hold_s: float | None = None      # lapses this long [s, sim time] after it is applied (None: held)
     kind: str = "cmd_vel"
+    command_id: int = 0              # set by Inbox.submit; its CommandResult carries it
+    source: str = "api"              # who sent it: api, ros2, mavlink, ...
 
 
 @dataclass(frozen=True, slots=True)
@@ -96,9 +111,260 @@ class DriveRoute:
     loop: bool = False
     laps: int = 0
     kind: str = "target"
+    command_id: int = 0              # set by Inbox.submit; its CommandResult carries it
+    source: str = "api"              # who sent it: api, ros2, mavlink, ...
 
 
-Command = SetTarget | LoadMission | Teleop | Arm | Drive | CmdVel | DriveRoute
+# -- PX4-style flight modes (docs/architecture.md §7). Positions and velocities in ENU metres, yaw in
+# radians ENU (0 = east, CCW), like every command here; NED/FRD exist only inside the MAVLink package.
+
+
+@dataclass(frozen=True, slots=True)
+class SetNavMode:
+    """Switch a drone's navigation mode (``NavState``: HOLD, TAKEOFF, LAND, RTL, MISSION, OFFBOARD,
+    POSCTL, MANUAL ...), with PX4's preconditions (OFFBOARD needs a fresh setpoint stream, MISSION an
+    uploaded mission, TAKEOFF an armed drone on the ground)."""
+
+    vehicle: str
+    nav_state: int
+    kind: str = "nav_mode"
+    command_id: int = 0
+    source: str = "api"
+
+
+@dataclass(frozen=True, slots=True)
+class Takeoff:
+    """Climb vertically to ``alt_enu_m`` (world z [m]; None: home + MIS_TAKEOFF_ALT), then HOLD;
+    ``yaw_rad`` None keeps the heading."""
+
+    vehicle: str
+    alt_enu_m: float | None = None
+    yaw_rad: float | None = None
+    kind: str = "takeoff"
+    command_id: int = 0
+    source: str = "api"
+
+
+@dataclass(frozen=True, slots=True)
+class Land:
+    """Descend and land at ``xy_enu_m`` (None: straight below), detect touchdown, disarm after COM_DISARM_LAND."""
+
+    vehicle: str
+    xy_enu_m: tuple[float, float] | None = None
+    kind: str = "land"
+    command_id: int = 0
+    source: str = "api"
+
+
+@dataclass(frozen=True, slots=True)
+class ReturnToLaunch:
+    """RTL: climb to RTL_RETURN_ALT above the destination (home or the closest rally point), fly there, land."""
+
+    vehicle: str
+    kind: str = "rtl"
+    command_id: int = 0
+    source: str = "api"
+
+
+@dataclass(frozen=True, slots=True)
+class SetParam:
+    """Set flight parameter ``name`` (``navigation.params``) of a drone to ``value`` (range-checked)."""
+
+    vehicle: str
+    name: str
+    value: float
+    kind: str = "param"
+    command_id: int = 0
+    source: str = "api"
+
+
+@dataclass(frozen=True, slots=True)
+class SetHome:
+    """Set the home position to ``pos_enu_m`` (None: where the drone is now)."""
+
+    vehicle: str
+    pos_enu_m: tuple[float, float, float] | None = None
+    kind: str = "home"
+    command_id: int = 0
+    source: str = "api"
+
+
+@dataclass(frozen=True, slots=True)
+class ChangeSpeed:
+    """Change the cruise (``which`` = "ground"), climb or descent speed [m/s] of the current and later legs."""
+
+    vehicle: str
+    which: str
+    speed_m_s: float
+    kind: str = "speed"
+    command_id: int = 0
+    source: str = "api"
+
+
+@dataclass(frozen=True, slots=True)
+class StoreMission:
+    """Keep ``mission`` (a validated MissionSpec) as the drone's uploaded mission without starting it
+    (MAVLink upload; MISSION mode or :class:`StartMission` runs it). None clears it."""
+
+    vehicle: str
+    mission: Any
+    kind: str = "mission_store"
+    command_id: int = 0
+    source: str = "api"
+
+
+@dataclass(frozen=True, slots=True)
+class StartMission:
+    """Run the uploaded mission from step ``first_step`` (MISSION mode); armed on the ground, it takes off first."""
+
+    vehicle: str
+    first_step: int = 0
+    kind: str = "mission_start"
+    command_id: int = 0
+    source: str = "api"
+
+
+@dataclass(frozen=True, slots=True)
+class SetMissionCurrent:
+    """Make ``step`` the mission's current step (it is flown next, or now when the mission runs)."""
+
+    vehicle: str
+    step: int
+    kind: str = "mission_current"
+    command_id: int = 0
+    source: str = "api"
+
+
+@dataclass(frozen=True, slots=True)
+class PauseMission:
+    """``resume`` False: pause the running mission and HOLD; True: continue it."""
+
+    vehicle: str
+    resume: bool
+    kind: str = "mission_pause"
+    command_id: int = 0
+    source: str = "api"
+
+
+@dataclass(frozen=True, slots=True)
+class Gripper:
+    """``grab`` True: pick up the package in reach (a mission pickup step's check); False: release it."""
+
+    vehicle: str
+    grab: bool
+    kind: str = "gripper"
+    command_id: int = 0
+    source: str = "api"
+
+
+@dataclass(frozen=True, slots=True)
+class Terminate:
+    """Flight termination: motors off now, wherever the drone is."""
+
+    vehicle: str
+    kind: str = "terminate"
+    command_id: int = 0
+    source: str = "api"
+
+
+@dataclass(frozen=True, slots=True)
+class OffboardSetpoint:
+    """One setpoint of an OFFBOARD stream (PX4: SET_POSITION_TARGET_*). Each part None = not set.
+
+    pos_enu_m : position [m]; vel_enu_m_s : world-frame velocity [m/s]; vel_flu_m_s : body-frame
+    velocity [m/s] (forward, left, up), rotated with the heading each step; yaw_rad : heading;
+    yaw_rate_rad_s : CCW. The stream keeps OFFBOARD alive; it lapses after COM_OF_LOSS_T.
+    """
+
+    vehicle: str
+    pos_enu_m: tuple[float, float, float] | None = None
+    vel_enu_m_s: tuple[float, float, float] | None = None
+    vel_flu_m_s: tuple[float, float, float] | None = None
+    yaw_rad: float | None = None
+    yaw_rate_rad_s: float | None = None
+    kind: str = "offboard"
+    command_id: int = 0
+    source: str = "api"
+
+
+@dataclass(frozen=True, slots=True)
+class ManualControl:
+    """Sticks of a MANUAL_CONTROL stream, each in [-1, 1] (``throttle`` in [0, 1], 0.5 = centre):
+    ``pitch`` forward, ``roll`` right, ``yaw`` clockwise, as a transmitter gives them. Flown as
+    POSCTL (velocity) or MANUAL (attitude) by the drone's navigation mode."""
+
+    vehicle: str
+    pitch: float
+    roll: float
+    throttle: float
+    yaw: float
+    kind: str = "manual_control"
+    command_id: int = 0
+    source: str = "api"
+
+
+@dataclass(frozen=True, slots=True)
+class Orbit:
+    """Circle ``center_enu_m`` at ``radius_m`` (> 0 clockwise seen from above, < 0 counter-clockwise)
+    at ``speed_m_s`` tangential; ``yaw_behaviour`` as MAVLink ORBIT_YAW_BEHAVIOUR (0: face the centre)."""
+
+    vehicle: str
+    center_enu_m: tuple[float, float, float]
+    radius_m: float
+    speed_m_s: float
+    yaw_behaviour: int = 0
+    kind: str = "orbit"
+    command_id: int = 0
+    source: str = "api"
+
+
+@dataclass(frozen=True, slots=True)
+class FollowTargetFix:
+    """One fix of a target to follow (FOLLOW_TARGET stream): position [m] and velocity [m/s], ENU."""
+
+    vehicle: str
+    pos_enu_m: tuple[float, float, float]
+    vel_enu_m_s: tuple[float, float, float] | None = None
+    kind: str = "follow_target"
+    command_id: int = 0
+    source: str = "api"
+
+
+@dataclass(frozen=True, slots=True)
+class SetGeofence:
+    """Replace the drone's geofence (``navigation.geofence.Geofence``; None: none)."""
+
+    vehicle: str
+    fence: Any
+    kind: str = "fence"
+    command_id: int = 0
+    source: str = "api"
+
+
+@dataclass(frozen=True, slots=True)
+class SetRallyPoints:
+    """Replace the drone's rally points (ENU [m]); RTL goes to the closest of home and these."""
+
+    vehicle: str
+    points_enu_m: tuple[tuple[float, float, float], ...]
+    kind: str = "rally"
+    command_id: int = 0
+    source: str = "api"
+
+
+NAV_COMMANDS = (SetNavMode, Takeoff, Land, ReturnToLaunch, SetParam, SetHome, ChangeSpeed, StoreMission,
+                StartMission, SetMissionCurrent, PauseMission, Gripper, Terminate, OffboardSetpoint,
+                ManualControl, Orbit, FollowTargetFix, SetGeofence, SetRallyPoints)
+
+# Streamed kinds: only the newest per vehicle and kind matters (a 50 Hz stick stream must not queue up);
+# every other command is applied in order, so none is silently superseded.
+STREAM_KINDS = frozenset({"teleop", "cmd_vel", "offboard", "manual_control", "follow_target"})
+
+
+Command = (SetTarget | LoadMission | Teleop | Arm | Drive | CmdVel | DriveRoute | SetNavMode | Takeoff
+           | Land | ReturnToLaunch | SetParam | SetHome | ChangeSpeed | StoreMission | StartMission
+           | SetMissionCurrent | PauseMission | Gripper | Terminate | OffboardSetpoint | ManualControl
+           | Orbit | FollowTargetFix | SetGeofence | SetRallyPoints)
 
 
 class Inbox:
@@ -106,9 +372,16 @@ class Inbox:
 
     def __init__(self) -> None:
         self._q: queue.SimpleQueue[Command] = queue.SimpleQueue()
+        self._ids = itertools.count(1)         # next() is atomic under the GIL: ids are unique across threads
 
     def put(self, msg: Command) -> None:
         self._q.put(msg)
+
+    def submit(self, msg: Command) -> int:
+        """Queue ``msg`` with a fresh id (thread-safe); returns the id its CommandResult will carry."""
+        command_id = next(self._ids)
+        self._q.put(dataclasses.replace(msg, command_id=command_id))
+        return command_id
 
     def drain_latest(self) -> list[Command]:
         """Take everything queued; keep the newest per (vehicle, kind), in arrival order of those."""
