@@ -10,6 +10,7 @@ with a note in the event log. The drone's system is :mod:`.flight_commands`, the
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import esper
 import numpy as np
@@ -17,6 +18,7 @@ import numpy as np
 from ..components.body import Identity, RigidBody
 from ..phases import Phase
 from ..scene.obstacles import buildings_on_segment
+from ..transport.api import CommandStatus
 from ..world import StepContext
 
 
@@ -40,23 +42,24 @@ class UnclaimedCommandSystem(esper.Processor):
         for msg in ctx.services.pending:
             ent = ctx.services.entities.get(msg.vehicle)
             if ent is None:
-                why = f"unknown vehicle {msg.vehicle!r}"
+                reason, why = "unknown_vehicle", f"unknown vehicle {msg.vehicle!r}"
             else:
                 kind = esper.component_for_entity(ent, Identity).kind
-                why = f"a {kind} does not take {type(msg).__name__} commands"
-            ctx.services.note(ctx.sim_time_s, msg.vehicle, f"rejected {msg.kind} command: {why}")
+                reason, why = "unsupported", f"a {kind} does not take {type(msg).__name__} commands"
+            ctx.services.report(ctx.sim_time_s, msg, CommandStatus.REJECTED_INVALID, reason, why)
         ctx.services.pending = []
 
 
-def claim(ctx: StepContext, has: type) -> list[tuple[int, object]]:
-    """Take from ``services.pending`` the commands for entities carrying component ``has``.
+def claim(ctx: StepContext, has: type, types: tuple[type, ...] | None = None) -> list[tuple[int, object]]:
+    """Take from ``services.pending`` the commands for entities carrying component ``has`` (only those
+    of the command classes ``types``, when given).
 
     Returns ``(entity, message)`` pairs in arrival order; the rest stay pending.
     """
     mine, rest = [], []
     for msg in ctx.services.pending:
         ent = ctx.services.entities.get(msg.vehicle)
-        if ent is not None and esper.has_component(ent, has):
+        if ent is not None and esper.has_component(ent, has) and (types is None or isinstance(msg, types)):
             mine.append((ent, msg))
         else:
             rest.append(msg)
@@ -76,18 +79,34 @@ def lapsed_rows(ctx: StepContext) -> np.ndarray:
     return np.flatnonzero(ctx.fleet.cmd_hold_until_s <= ctx.sim_time_s + 1e-9)
 
 
-def serve_commands(ctx: StepContext, has: type, apply: Callable[[StepContext, int, object], str],
-                   on_lapse: Callable[[StepContext, int, int], None]) -> None:
-    """One vehicle type's commands for this step: claim those for entities carrying ``has``, apply each
-    (``apply(ctx, entity, msg)`` returns "" or why it refused, which goes to the event log; an applied
-    one sets the row's ``cmd_hold_until_s``), then call ``on_lapse(ctx, entity, row)`` for each such
-    entity whose streamed teleop/cmd_vel lapsed this step."""
+@dataclass(frozen=True, slots=True)
+class Refusal:
+    """Why a command system did not apply a command: ``status`` (REJECTED_INVALID, REJECTED_STATE or
+    FAILED), a machine-readable ``reason`` (``not_armed``, ``in_air`` ...) and ``text`` for people."""
+
+    status: CommandStatus
+    reason: str
+    text: str
+
+
+def serve_commands(ctx: StepContext, has: type, apply: Callable[[StepContext, int, object], str | Refusal],
+                   on_lapse: Callable[[StepContext, int, int], None],
+                   types: tuple[type, ...] | None = None) -> None:
+    """One vehicle type's commands for this step: claim those for entities carrying ``has`` (of the
+    classes ``types`` when given), apply each and report its result (``services.report``):
+    ``apply(ctx, entity, msg)`` returns "" when it applied it (ACCEPTED; the row's ``cmd_hold_until_s``
+    is set), a :class:`Refusal`, or a plain string (an invalid value: REJECTED_INVALID with that text).
+    Then call ``on_lapse(ctx, entity, row)`` for each such entity whose streamed teleop/cmd_vel lapsed
+    this step."""
     f = ctx.fleet
-    for ent, msg in claim(ctx, has):
-        error = apply(ctx, ent, msg)
-        if error:
-            ctx.services.note(ctx.sim_time_s, msg.vehicle, f"rejected {msg.kind} command: {error}")
+    for ent, msg in claim(ctx, has, types):
+        outcome = apply(ctx, ent, msg)
+        if isinstance(outcome, Refusal):
+            ctx.services.report(ctx.sim_time_s, msg, outcome.status, outcome.reason, outcome.text)
+        elif outcome:
+            ctx.services.report(ctx.sim_time_s, msg, CommandStatus.REJECTED_INVALID, "invalid", outcome)
         else:
+            ctx.services.report(ctx.sim_time_s, msg, CommandStatus.ACCEPTED)
             f.cmd_hold_until_s[f.row_of(ent)] = hold_until_s(ctx, msg)
     for row in lapsed_rows(ctx):
         ent = int(f.entity[row])
