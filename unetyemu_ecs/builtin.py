@@ -26,6 +26,7 @@ from .systems.guidance import RouteFollowingSystem
 from .systems.mission import EmergencyLandingSystem, MissionSystem
 from .systems.motors import MotorSystem
 from .systems.payload import PayloadSystem
+from .transport.mavlink.component import MavlinkEndpoint
 
 QUADROTOR = frozenset({"quadrotor"})
 CAR = frozenset({"car"})
@@ -48,6 +49,8 @@ ENERGY = ComponentPlugin(component=EnergyModel, systems=(EnergySystem,), applies
                          summary="actuator-disk power per motor and battery")
 MISSION = ComponentPlugin(component=MissionSpec, applies_to=QUADROTOR,
                           summary="mission started at t = 0 (steps: takeoff, cruise, land, pickup, deliver, recharge, idle)")
+MAVLINK = ComponentPlugin(component=MavlinkEndpoint, applies_to=QUADROTOR,
+                          summary="MAVLink endpoint like PX4 SITL instance i: API link 14540+i, GCS link 14550, system id i+1")
 TELEOP_SCRIPT = ComponentPlugin(component=TeleopScript, applies_to=QUADROTOR,
                                 summary="scripted manual sticks [throttle, pitch, roll, yaw] over time")
 
