@@ -344,3 +344,10 @@ def test_set_current_submits_the_step_holding_the_item():
     out = rig.send(mav.MAVLink_mission_set_current_message(1, 1, 7))
     assert [m.get_type() for m in out] == ["STATUSTEXT"]
     assert len(rig.commands) == 2
+
+
+def test_step_of_seq_maps_item_numbers_to_steps_for_mission_start():
+    rig = Rig()
+    assert rig.svc.step_of_seq(0) is None                    # no mission uploaded
+    assert rig.upload(mavsdk_mission()).type == 0
+    assert [rig.svc.step_of_seq(s) for s in (0, 3, 7, 8, 9)] == [0, 0, 0, 1, None]

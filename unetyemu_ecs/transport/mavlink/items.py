@@ -192,10 +192,12 @@ def _position(item: MissionItem, origin: GeodeticOrigin, home_z_m: float, requir
     e, n = float(e), float(n)
     if abs(n) > MAX_XY_M:
         raise ItemError(mav.MAV_MISSION_INVALID_PARAM5_X, seq,
-                        f"latitude {lat:.7f} is {n / 1000:.1f} km north of the world origin (limit {MAX_XY_M / 1000:g} km)")
+                        f"latitude {lat:.7f} is {n / 1000:.1f} km north of the world origin"
+                        f" (limit {MAX_XY_M / 1000:g} km)")
     if abs(e) > MAX_XY_M:
         raise ItemError(mav.MAV_MISSION_INVALID_PARAM6_Y, seq,
-                        f"longitude {lon:.7f} is {e / 1000:.1f} km east of the world origin (limit {MAX_XY_M / 1000:g} km)")
+                        f"longitude {lon:.7f} is {e / 1000:.1f} km east of the world origin"
+                        f" (limit {MAX_XY_M / 1000:g} km)")
     if not MIN_Z_M <= z <= MAX_Z_M:
         raise ItemError(mav.MAV_MISSION_INVALID_PARAM7, seq,
                         f"altitude gives height {z:.1f} m, outside [{MIN_Z_M:g}, {MAX_Z_M:g}] m")
@@ -361,7 +363,8 @@ def build_mission(items: Sequence[MissionItem], origin: GeodeticOrigin, home_z_m
         elif cmd == DO_GRIPPER:
             action = it.param2
             if action not in (0.0, 1.0):
-                raise ItemError(mav.MAV_MISSION_INVALID_PARAM2, it.seq, f"gripper action {action} (expected 0 release, 1 grab)")
+                raise ItemError(mav.MAV_MISSION_INVALID_PARAM2, it.seq,
+                                f"gripper action {action} (expected 0 release, 1 grab)")
             flush_cruise()
             wps = [Waypoint(x=last_pos[0], y=last_pos[1], z=last_pos[2])] if last_pos is not None else []
             add(MissionStep(type="pickup" if action == 1.0 else "deliver", waypoints=wps), it.seq, [])
@@ -407,7 +410,8 @@ def build_geofence(items: Sequence[MissionItem], origin: GeodeticOrigin, home_z_
         if it.command in polys:
             n = it.param1
             if not _finite(n) or n != int(n) or n < 3:
-                raise ItemError(mav.MAV_MISSION_INVALID_PARAM1, it.seq, f"polygon vertex count {n} (need an integer >= 3)")
+                raise ItemError(mav.MAV_MISSION_INVALID_PARAM1, it.seq,
+                                f"polygon vertex count {n} (need an integer >= 3)")
             n = int(n)
             run = items[i:i + n]
             if len(run) < n or any(v.command != it.command or v.param1 != it.param1 for v in run):
@@ -421,7 +425,8 @@ def build_geofence(items: Sequence[MissionItem], origin: GeodeticOrigin, home_z_
         elif it.command in circles:
             r = it.param1
             if not _finite(r) or not 0.0 < r <= 2.0 * MAX_XY_M:
-                raise ItemError(mav.MAV_MISSION_INVALID_PARAM1, it.seq, f"circle radius {r} m outside (0, {2 * MAX_XY_M:g}]")
+                raise ItemError(mav.MAV_MISSION_INVALID_PARAM1, it.seq,
+                                f"circle radius {r} m outside (0, {2 * MAX_XY_M:g}]")
             x, y, _ = _position(it, origin, home_z_m, use_z=False)
             circles[it.command].append((x, y, float(r)))
             i += 1

@@ -137,6 +137,12 @@ class MissionService:
         """The mission list in force (None: none uploaded over MAVLink)."""
         return self._stores[MISSION].plan
 
+    def step_of_seq(self, seq: int) -> int | None:
+        """Mission step holding MAVLink item ``seq`` of the uploaded mission (for MISSION_START p1 and
+        DO_SET_MISSION_CURRENT, whose numbers are item seqs, not steps); None: no such item or step."""
+        plan = self.plan
+        return plan.step_of_seq(seq) if plan is not None else None
+
     def items(self, mission_type: int) -> tuple[MissionItem, ...]:
         """The stored list of one type, as uploaded."""
         return self._stores[mission_type].items
