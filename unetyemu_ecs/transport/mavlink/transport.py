@@ -10,6 +10,7 @@ newest only.
 from __future__ import annotations
 
 import collections
+import dataclasses
 import selectors
 import socket
 import threading
@@ -191,6 +192,11 @@ class MavlinkTransport:
                     ep.on_event(text)
             self._event_cursor = max(self._event_cursor, snap.events_end)
         newest = snaps[-1]
+        if len(snaps) > 1 and any(s.mission_status for s in snaps[:-1]):
+            merged: dict[str, Any] = {}
+            for s in snaps:                  # a mission status change of a skipped step is not lost
+                merged.update(s.mission_status)
+            newest = dataclasses.replace(newest, mission_status=merged)
         for vehicle, ep in self.endpoints.items():
             try:
                 row = newest.row(vehicle)
