@@ -102,7 +102,8 @@ class Client:
                 data, addr = self.sock.recvfrom(65535)
             except (BlockingIOError, InterruptedError):
                 return
-            for msg, _, _ in self.parser.frames(data):
+            for msg, _, signed in self.parser.frames(data):
+                msg.signed_frame = signed            # the frame carried a signature (not verified here)
                 self.inbox.append((msg, addr))
 
     def take(self, mtype: str, cond=lambda m: True) -> Any | None:
