@@ -11,20 +11,25 @@ from typing import Any
 
 from ...geodesy import GeodeticOrigin
 from ..api import TransportError, TransportOptions, TransportPlugin
-from .component import MavlinkEndpoint, MavlinkSigning
+from .component import MAX_INSTANCE, MavlinkEndpoint, MavlinkSigning
 
 COMPONENT_KEY = "mavlink"
 
 
 def endpoints_of(world: Any, options: TransportOptions) -> list[tuple[str, MavlinkEndpoint]]:
-    """(drone, endpoint config) of every drone with a ``mavlink`` component, or of every drone
-    (instance = its index among drones) when ``options.mavlink`` forces them; instances are unique."""
+    """(drone, endpoint config) of every drone with a ``mavlink`` component, and of every other drone
+    when ``options.mavlink`` forces them (instance = its index among the drones, or the lowest one
+    no world-file component uses when that is taken); two components with one instance are an error."""
     out: list[tuple[str, MavlinkEndpoint]] = []
     drones = [e for e in world.vehicles if e.kind == "quadrotor"]
+    explicit = {e.components[COMPONENT_KEY].instance for e in drones if COMPONENT_KEY in e.components}
+    used = set(explicit)
     for index, ent in enumerate(drones):
         cfg = ent.components.get(COMPONENT_KEY)
         if cfg is None and options.mavlink:
-            cfg = MavlinkEndpoint(instance=index, bind=options.mavlink_bind)
+            instance = index if index not in used else min(set(range(MAX_INSTANCE + 1)) - used)
+            cfg = MavlinkEndpoint(instance=instance, bind=options.mavlink_bind)
+            used.add(instance)
         if cfg is not None:
             out.append((ent.name, cfg))
     seen: dict[int, str] = {}

@@ -175,7 +175,7 @@ class DatagramParser:
             if end > n:
                 c.truncated += 1
                 failures += 1
-                junk = False
+                junk = True              # the bytes up to the next magic belong to this counted failure
                 p += 1
                 continue
             frame = bytes(data[p:end])
@@ -194,7 +194,7 @@ class DatagramParser:
                     else:
                         c.bad_prefix += 1
                 failures += 1
-                junk = False
+                junk = True
                 p += 1
                 continue
             c.rx_messages += 1
