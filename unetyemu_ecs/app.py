@@ -32,13 +32,34 @@ from .systems.impacts import ImpactMonitorSystem
 from .systems.outputs import TrajectoryLogSystem
 from .systems.physics import PhysicsStepSystem
 from .systems.state import StateReadbackSystem
-from .transport.ros2.bridge import resolve_backend
 from .config.limits import MAX_DURATION_S
 from .mission import MissionSpec, mission_reference_issues, parse_mission
 from .navigation.commands_api import NavigationApi
+from .transport.api import CommandResult, Transport, TransportError, TransportOptions
 from .transport.bus import Arm, CmdVel, Drive, DriveRoute, Inbox, LoadMission, SetTarget, Teleop
+from .transport.ros2.bridge import resolve_backend
+from .transport.snapshot import SnapshotBuilder, TransportSnapshotSystem
 from .vehicles.factory import spawn_entity
 from .world import EcsWorld, SimServices, StepContext
+
+
+CLOSE_FLUSH_S = 1.0     # close() lets each transport send what it was offered for at most this [s, wall]
+CLOSE_STOP_S = 2.0      # then waits at most this for its threads to end [s, wall]
+
+
+def _check_mavlink(mavlink: object) -> bool:
+    if not isinstance(mavlink, (bool, np.bool_)):
+        raise ValueError(f"mavlink must be True or False, got {mavlink!r}")
+    return bool(mavlink)
+
+
+def _check_bind(address: object) -> str:
+    import ipaddress
+
+    try:
+        return str(ipaddress.ip_address(address))  # type: ignore[arg-type]
+    except ValueError:
+        raise ValueError(f"mavlink_bind must be an IPv4 or IPv6 address such as 127.0.0.1, got {address!r}") from None
 
 
 class UnknownEntityError(ValueError, KeyError):
@@ -90,15 +111,27 @@ class Simulation(NavigationApi):
         participant (no ROS install needed); ``"rclpy"``: a node of the sourced ROS 2; ``"auto"``:
         rclpy when it imports, else dds. It publishes every sensor message, TF, ``/clock`` and
         mission status and listens to each vehicle's command topics (docs/architecture.md §6).
+    mavlink : give every drone a MAVLink endpoint, also those without a ``mavlink`` component
+        (``unetyemu run --mavlink``; docs/architecture.md §7)
+    mavlink_bind : the address those endpoints bind (default loopback only)
+
+    Transports (ROS 2, MAVLink, and those of other packages: entry-point group
+    ``unetyemu_ecs.transports``) are created from these options and started with the world; one
+    that cannot start raises :class:`~unetyemu_ecs.transport.api.TransportError` (nothing is left
+    open). They publish from their own threads; :meth:`flush_transports` waits for them.
     """
 
     def __init__(self, world: WorldDefinition, *, gui: bool = False, out_dir: str | Path | None = None,
-                 ros2: str = "off") -> None:
+                 ros2: str = "off", mavlink: bool = False, mavlink_bind: str = "127.0.0.1") -> None:
         spec = world.spec.world
         self.definition = world
         self.ros2 = ros2
         self.ros2_backend = resolve_backend(ros2)        # "off", "rclpy" or "dds"
-        self._ros2_bridge = None
+        self._options = TransportOptions(self.ros2_backend, _check_mavlink(mavlink), _check_bind(mavlink_bind),
+                                         Path(out_dir) if out_dir is not None else None)
+        self._transports: list[Transport] = []
+        self._result_index: dict[int, CommandResult] = {}
+        self._results_indexed = 0
         self.dt_s = 1.0 / spec.physics_hz
         self.seed = spec.seed
         self.rng = np.random.default_rng(spec.seed)
@@ -132,6 +165,7 @@ class Simulation(NavigationApi):
                 self._state.prime(self._context())
                 if self._log is not None:
                     self._log.write_rows(self._context(), 0.0)
+                self._start_transports(world)
             self._built = True
         except BaseException:
             self.close()
@@ -159,8 +193,6 @@ class Simulation(NavigationApi):
         systems += [controller_system(name, world.registry.controller_entry(name).spec) for name in in_use]
         for key, cfg in world.systems.items():
             systems.append(world.registry.system_entry(key).spec.system(cfg))
-        if self.ros2_backend != "off":
-            systems.append(self._start_ros2(world))
         if self.out_dir is not None:
             self.out_dir.mkdir(parents=True, exist_ok=True)
             spec = world.spec.world
@@ -169,33 +201,44 @@ class Simulation(NavigationApi):
         for s in systems:
             self.ecs.add_system(s)
 
-    def _start_ros2(self, world: WorldDefinition) -> Any:
-        """Open the ROS 2 backend, listen to the command topics; return the publisher system."""
-        import queue
+    def _start_transports(self, world: WorldDefinition) -> None:
+        """Create every installed transport enabled for this world and these options, and start each
+        with the snapshot of the built world; a :class:`TransportError` propagates (the caller closes)."""
+        created = []
+        for entry in world.registry.transports():
+            transport = entry.spec.create(world, self._options)
+            if transport is not None:
+                created.append(transport)
+        if not created:
+            return
+        builder = SnapshotBuilder([(e.name, e.kind) for e in world.vehicles])
+        first = builder.build(self._context(), self.step_count, self.sim_time_s, first=True)
+        self.ecs.add_system(TransportSnapshotSystem(builder, self._transports))
+        for transport in created:
+            self._transports.append(transport)         # stopped by close() even if start fails half-way
+            transport.start(self.inbox, first)
 
-        from .systems.ros2_out import Ros2PublisherSystem
-        from .transport.ros2.bridge import open_bridge
-        from .transport.ros2.inbound import COMMAND_TOPICS, apply_command
+    def transport_counters(self) -> dict[str, dict[str, Any]]:
+        """Each transport's counters (messages, drops, errors), by name: ``summary.json["transports"]``."""
+        return {t.name: t.counters() for t in self._transports}
 
-        notices: queue.SimpleQueue = queue.SimpleQueue()
-        kinds = {e.name: e.kind for e in world.entities if e.kind != "package" and e.ros2}
-        hidden = frozenset(e.name for e in world.entities if e.kind != "package" and not e.ros2)
+    @property
+    def transports(self) -> dict[str, Transport]:
+        """The started transports by name (``ros2``, ``mavlink``, ...)."""
+        return {t.name: t for t in self._transports}
 
-        def on_message(vehicle: str, topic_kind: str, topic: str, sample: Any) -> None:   # transport thread
-            try:
-                apply_command(self, vehicle, kinds[vehicle], topic_kind, sample,
-                              hold_s=self.command_timeout_s(vehicle) or None)
-            except ValueError as exc:
-                notices.put((vehicle, topic, str(exc)))
-
-        self._ros2_bridge = open_bridge(self.ros2_backend, kinds, COMMAND_TOPICS, on_message,
-                                        {"world.name": world.spec.world.name, "world.seed": world.spec.world.seed})
-        return Ros2PublisherSystem(self._ros2_bridge, notices, hidden)
+    def flush_transports(self, timeout_s: float = 2.0) -> bool:
+        """Wait until every transport has handled what the simulation offered it so far (published,
+        sent): at most ``timeout_s`` seconds of wall time per transport; True when all had."""
+        if not (is_real(timeout_s) and math.isfinite(timeout_s) and 0 <= timeout_s <= 600):
+            raise ValueError(f"flush_transports(): timeout_s must be a number of seconds in [0, 600], got {timeout_s!r}")
+        return all([t.flush(float(timeout_s)) for t in self._transports])
 
     @property
     def ros2_topics(self) -> list[str]:
         """The ROS 2 topics this simulation has published so far (empty with ROS 2 off)."""
-        return self._ros2_bridge.topics if self._ros2_bridge is not None else []
+        ros2 = self.transports.get("ros2")
+        return list(getattr(ros2, "topics", [])) if ros2 is not None else []
 
     # -- clock -------------------------------------------------------------------------------
     @property
@@ -286,6 +329,7 @@ class Simulation(NavigationApi):
                         self.step_count - start_step, interrupted, cpu_s)
 
     # -- commands (applied at the next step's COMMANDS phase) ---------------------------------
+    # Each returns the command's id; command_result(id) says what became of it after the next step.
     def _drone(self, name: str) -> int:
         return self._of_kind(name, "quadrotor", "a drone")
 
@@ -300,7 +344,7 @@ class Simulation(NavigationApi):
         return ent
 
     def set_target(self, name: str, x: float, y: float, z: float = 0.0, yaw_deg: float | None = None,
-                   speed: float | None = None) -> None:
+                   speed: float | None = None) -> int:
         """Send vehicle ``name`` to ENU ``(x, y, z)`` [m] at ``speed`` [m/s] (None = its default).
 
         A drone flies there (cancelling a running mission) and faces ``yaw_deg`` (ENU, None = keep);
@@ -311,7 +355,7 @@ class Simulation(NavigationApi):
         if kind == "package":
             raise ValueError(f"{name!r} is a package, not a vehicle")
         pos_enu_m, yaw_rad, speed_m_s = check_set_target(name, kind, self.layout, x, y, z, yaw_deg, speed)
-        self.inbox.put(SetTarget(name, pos_enu_m, yaw_rad, speed_m_s))
+        return self.inbox.submit(SetTarget(name, pos_enu_m, yaw_rad, speed_m_s))
 
     def command_timeout_s(self, name: str) -> float:
         """How long a streamed teleop/cmd_vel for vehicle ``name`` holds without a newer one [s] (0 = forever);
@@ -320,11 +364,11 @@ class Simulation(NavigationApi):
         spec = next(v for v in self.definition.spec.vehicles if v.name == name)
         return spec.command_timeout_s
 
-    def load_mission(self, name: str, mission: str | MissionSpec) -> MissionSpec:
+    def load_mission(self, name: str, mission: str | MissionSpec) -> int:
         """Load a mission (JSON text in our or the paper's format, or a MissionSpec) and start it.
 
         A bad mission is rejected whole with a :class:`ConfigError` naming the step and field; the
-        drone keeps doing what it was doing.
+        drone keeps doing what it was doing. Returns the command id (:meth:`command_result`).
         """
         self._drone(name)
         if isinstance(mission, (str, bytes, bytearray)):
@@ -337,11 +381,10 @@ class Simulation(NavigationApi):
         problems = mission_reference_issues(spec, self.layout, self.package_names)
         if problems:
             raise ConfigError([Issue(f"mission for {name}", None, path, msg) for path, msg in problems])
-        self.inbox.put(LoadMission(name, spec))
-        return spec
+        return self.inbox.submit(LoadMission(name, spec))
 
     def teleop(self, name: str, throttle: float, pitch: float, roll: float, yaw: float, *,
-               hold_s: float | None = None) -> None:
+               hold_s: float | None = None) -> int:
         """Fly drone ``name`` by sticks in [-1, 1] (MANUAL mode; see the stabilizer for the mapping).
 
         The sticks are held until the next command, or for ``hold_s`` seconds of sim time, after
@@ -349,25 +392,25 @@ class Simulation(NavigationApi):
         :meth:`command_timeout_s`).
         """
         self._drone(name)
-        self.inbox.put(Teleop(name, *check_teleop(name, throttle, pitch, roll, yaw, hold_s)))
+        return self.inbox.submit(Teleop(name, *check_teleop(name, throttle, pitch, roll, yaw, hold_s)))
 
-    def arm(self, name: str, armed: bool = True) -> None:
+    def arm(self, name: str, armed: bool = True) -> int:
         """Arm (hold position in AUTO mode) or disarm (motors off) drone ``name``; for a car, release
         the parking brake and hold still under speed control, or park it (brakes on)."""
         if self.definition_of(name).kind == "package":
             raise ValueError(f"{name!r} is a package, not a vehicle")
-        self.inbox.put(Arm(name, check_armed(name, armed)))
+        return self.inbox.submit(Arm(name, check_armed(name, armed)))
 
     def drive(self, name: str, throttle: float, brake: float, steering: float, *,
-              hold_s: float | None = None) -> None:
+              hold_s: float | None = None) -> int:
         """Drive car ``name`` by hand (MANUAL): ``throttle`` in [-1, 1] (negative = reverse), ``brake``
         in [0, 1], ``steering`` in [-1, 1] (+1 = full left; the limit shrinks with speed). Held until
         the next command, or for ``hold_s`` seconds of sim time (then the car brakes to a stop)."""
         self._car(name)
-        self.inbox.put(Drive(name, *check_drive(name, throttle, brake, steering, hold_s)))
+        return self.inbox.submit(Drive(name, *check_drive(name, throttle, brake, steering, hold_s)))
 
     def cmd_vel(self, name: str, forward_m_s: float, yaw_rate_rad_s: float, left_m_s: float = 0.0,
-                up_m_s: float = 0.0, *, hold_s: float | None = None) -> None:
+                up_m_s: float = 0.0, *, hold_s: float | None = None) -> int:
         """Body-frame velocity command (ROS ``cmd_vel``), held until the next command or for ``hold_s``
         seconds of sim time (then a drone hovers, a car brakes to a stop).
 
@@ -380,14 +423,26 @@ class Simulation(NavigationApi):
         kind = self.definition_of(name).kind
         if kind not in ("quadrotor", "car"):
             raise ValueError(f"cmd_vel({name!r}): {name!r} is a {kind}, not a vehicle")
-        self.inbox.put(CmdVel(name, *check_cmd_vel(name, forward_m_s, yaw_rate_rad_s, left_m_s, up_m_s, hold_s)))
+        return self.inbox.submit(CmdVel(name, *check_cmd_vel(name, forward_m_s, yaw_rate_rad_s, left_m_s, up_m_s,
+                                                             hold_s)))
 
     def drive_route(self, name: str, waypoints: list[tuple[float, float]], speed: float | None = None,
-                    loop: bool = False, laps: int = 0) -> None:
+                    loop: bool = False, laps: int = 0) -> int:
         """Drive car ``name`` through ENU ``(x, y)`` waypoints [m] in order at ``speed`` [m/s] (slower
         in corners), stopping at the last; with ``loop`` go round ``laps`` times (0 = forever)."""
         self._car(name)
-        self.inbox.put(DriveRoute(name, *check_drive_route(name, self.layout, waypoints, speed, loop, laps)))
+        return self.inbox.submit(DriveRoute(name, *check_drive_route(name, self.layout, waypoints, speed, loop, laps)))
+
+    def command_result(self, command_id: int) -> CommandResult | None:
+        """The newest result of the command with id ``command_id`` (what a command method returned):
+        accepted, or rejected with a machine reason and a text (``CommandResult``); None while it
+        waits for the next step (or for an id never given out)."""
+        self._require_open()
+        results = self.services.results
+        for res in results[self._results_indexed:]:
+            self._result_index[res.command_id] = res
+        self._results_indexed = len(results)
+        return self._result_index.get(command_id)
 
     def mission_status(self, name: str) -> dict[str, Any] | None:
         """Status of the drone's mission (step, step type, state, reason), or None without one."""
@@ -583,6 +638,11 @@ class Simulation(NavigationApi):
         delete the esper world; safe to call twice. Any later use raises :class:`SimulationClosedError`."""
         if self._closed:
             return
+        for transport in self._transports:      # first: no command arrives while the rest shuts down
+            try:
+                transport.flush(CLOSE_FLUSH_S)
+            finally:
+                transport.stop(CLOSE_STOP_S)
         if self._built and self.out_dir is not None:
             from .summary import write_summary
 
@@ -590,10 +650,8 @@ class Simulation(NavigationApi):
                 write_summary(self.summary(), self.out_dir)
             except OSError as exc:
                 self.services.note(self.sim_time_s, "", f"cannot write summary.json: {exc}")
-        if self._ros2_bridge is not None:       # first: no command arrives while the rest shuts down
-            self._ros2_bridge.close()
-            self._ros2_bridge = None
         self._closed = True
+        self._transports.clear()
         if self._log is not None:
             self._log.close()
         if self.physics is not None:

@@ -75,6 +75,16 @@ def _vehicle_name(text: str) -> str:
     return text
 
 
+def _bind_address(text: str) -> str:
+    import ipaddress
+
+    try:
+        return str(ipaddress.ip_address(text))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an IP address (e.g. 127.0.0.1, or 0.0.0.0 for "
+                                         "every interface)") from None
+
+
 def _out_dir(text: str) -> Path:
     if not text.strip():
         raise argparse.ArgumentTypeError("the output directory must not be empty (omit --out for runs/<world>-<time>)")
@@ -112,11 +122,16 @@ def build_parser() -> argparse.ArgumentParser:
                      help="be a ROS 2 node: publish sensors, TF, /clock and mission status, take commands "
                           "(dds: built in, no ROS needed; rclpy: the sourced ROS 2; auto: rclpy if it imports, "
                           "else dds; default off). With ROS 2 on, the default pace is real time")
+    run.add_argument("--mavlink", action="store_true",
+                     help="give every drone a MAVLink endpoint (PX4 SITL ports: API link 14540+i, GCS link "
+                          "14550), also drones without a mavlink component; the default pace is then real time")
+    run.add_argument("--mavlink-bind", type=_bind_address, default="127.0.0.1", metavar="ADDR",
+                     help="address the --mavlink endpoints bind (default 127.0.0.1: this machine only)")
 
     val = sub.add_parser("validate", help="check world files without running them")
     val.add_argument("worlds", type=Path, nargs="+", metavar="WORLD")
 
-    sub.add_parser("plugins", help="list installed components, systems and sensors")
+    sub.add_parser("plugins", help="list installed components, systems, sensors, controllers and transports")
 
     tele = sub.add_parser("teleop", help="drive a vehicle from the keyboard over ROS 2 (DDS)")
     tele.add_argument("vehicle", metavar="VEHICLE", type=_vehicle_name,
@@ -256,7 +271,8 @@ def _run(args: argparse.Namespace, stop: _StopOnSignal) -> int:
     from .physics.client import PhysicsError
     from .sensors.raycast import SensorUnavailable
     from .summary import format_summary
-    from .transport.ros2.dds_backend import Ros2Error, discovery_description, domain_from_env
+    from .transport.api import TransportError
+    from .transport.ros2.dds_backend import discovery_description, domain_from_env
 
     try:
         world = load_world(args.world, seed=args.seed)
@@ -264,7 +280,7 @@ def _run(args: argparse.Namespace, stop: _StopOnSignal) -> int:
         print(f"error: invalid world file:\n{exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     if args.rate is None:
-        rate = 1.0 if (args.gui or args.ros2 != "off") else None
+        rate = 1.0 if (args.gui or args.ros2 != "off" or args.mavlink) else None
     else:
         rate = None if args.rate == float("inf") else args.rate
     duration = args.duration if args.duration is not None else world.spec.world.duration_s
@@ -273,8 +289,9 @@ def _run(args: argparse.Namespace, stop: _StopOnSignal) -> int:
         print(f"error: {out}", file=sys.stderr)
         return EXIT_BAD_INPUT
     try:
-        sim = Simulation(world, gui=args.gui, out_dir=out, ros2=args.ros2)
-    except (PhysicsError, SensorUnavailable, Ros2Error) as exc:
+        sim = Simulation(world, gui=args.gui, out_dir=out, ros2=args.ros2, mavlink=args.mavlink,
+                         mavlink_bind=args.mavlink_bind)
+    except (PhysicsError, SensorUnavailable, TransportError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_FAILURE
     except OSError as exc:
@@ -385,12 +402,12 @@ def cmd_plugins() -> int:
             print("  (none)")
         for key, entry in sorted(entries.items()):
             spec = entry.spec
-            schema = getattr(spec, "component", None) or getattr(spec, "config", None) or getattr(spec, "params")
+            schema = getattr(spec, "component", None) or getattr(spec, "config", None) or getattr(spec, "params", None)
             layer = getattr(spec, "layer", None)
             summary = (f" - {layer} layer:" if layer else " -") + (f" {spec.summary}" if spec.summary else "")
             print(f"  {key:<18} [{entry.provider}]{summary}")
             presets = {} if layer else _preset_values(key)
-            for name, tname, default in describe_schema(schema):
+            for name, tname, default in (describe_schema(schema) if schema is not None else []):
                 print(f"      {name}: {tname} = {_default_text(default, presets.get(name))}")
     if reg.failures:
         print("failed to load:")

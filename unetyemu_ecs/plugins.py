@@ -1,6 +1,6 @@
 """Plugin discovery through Python entry points, and the registry the world loader resolves against.
 
-Three entry-point groups (docs/architecture.md §2):
+Five entry-point groups (docs/architecture.md §2):
 
 ``unetyemu_ecs.components``
     name = the world-file key under ``vehicles[i].components`` / ``packages[i].components``;
@@ -14,6 +14,10 @@ Three entry-point groups (docs/architecture.md §2):
 ``unetyemu_ecs.controllers``
     name = the controller's name, chosen per vehicle and layer under ``controller:``
     (``controller: {attitude: px4_attitude}``); object = a :class:`ControllerPlugin`.
+``unetyemu_ecs.transports``
+    name = the transport's name (``ros2``, ``mavlink``; its counters' key in ``summary.json``);
+    object = a :class:`~unetyemu_ecs.transport.api.TransportPlugin` whose ``create(world, options)``
+    returns a transport for this simulation, or None when it is not enabled.
 
 Built-in parts are declared in this project's own ``pyproject.toml`` and found the same way as
 third-party ones. A plugin that fails to import is not fatal: the registry records why, ``unetyemu
@@ -30,12 +34,14 @@ from typing import Annotated, Any
 
 from .control.layers import LAYERS_OF_KIND, Layer
 from .phases import Phase
+from .transport.api import TransportPlugin
 
 GROUP_COMPONENTS = "unetyemu_ecs.components"
 GROUP_SYSTEMS = "unetyemu_ecs.systems"
 GROUP_SENSORS = "unetyemu_ecs.sensors"
 GROUP_CONTROLLERS = "unetyemu_ecs.controllers"
-GROUPS = (GROUP_COMPONENTS, GROUP_SYSTEMS, GROUP_SENSORS, GROUP_CONTROLLERS)
+GROUP_TRANSPORTS = "unetyemu_ecs.transports"
+GROUPS = (GROUP_COMPONENTS, GROUP_SYSTEMS, GROUP_SENSORS, GROUP_CONTROLLERS, GROUP_TRANSPORTS)
 
 ALL_KINDS = frozenset({"quadrotor", "car", "package"})
 
@@ -190,7 +196,7 @@ class ControllerPlugin:
 
 
 _EXPECTED = {GROUP_COMPONENTS: ComponentPlugin, GROUP_SYSTEMS: SystemPlugin, GROUP_SENSORS: SensorPlugin,
-             GROUP_CONTROLLERS: ControllerPlugin}
+             GROUP_CONTROLLERS: ControllerPlugin, GROUP_TRANSPORTS: TransportPlugin}
 
 
 @dataclass(frozen=True)
@@ -199,7 +205,7 @@ class PluginEntry:
 
     key: str
     group: str
-    spec: ComponentPlugin | SystemPlugin | SensorPlugin | ControllerPlugin
+    spec: ComponentPlugin | SystemPlugin | SensorPlugin | ControllerPlugin | TransportPlugin
     provider: str
 
 
@@ -212,7 +218,7 @@ class Registry:
 
     @classmethod
     def discover(cls) -> Registry:
-        """Load every entry point of the three groups from the installed distributions."""
+        """Load every entry point of every group from the installed distributions."""
         reg = cls()
         for group in GROUPS:
             for ep in sorted(entry_points(group=group), key=lambda e: e.name):
@@ -279,6 +285,10 @@ class Registry:
                            f"({layer} controllers: {', '.join(fits) or 'none installed'})")
         message = self._unknown(key, [GROUP_CONTROLLERS], fits)
         raise KeyError(message.replace("unknown key", f"unknown {layer or ''} controller".replace("  ", " ")))
+
+    def transports(self) -> list[PluginEntry]:
+        """The registered transports, by name (each is asked to ``create`` one per simulation)."""
+        return [e for _, e in sorted(self.entries[GROUP_TRANSPORTS].items())]
 
     def _unknown(self, key: str, groups: Iterable[str], available: list[str]) -> str:
         for group in groups:

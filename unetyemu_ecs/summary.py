@@ -48,6 +48,7 @@ def build_summary(sim: Simulation, stats: RunStats) -> dict[str, Any]:
         "interrupted": stats.interrupted,
         "entities": entities,
         "pads": {name: [round(float(v), 3) for v in pad.center_enu_m] for name, pad in sim.layout.pads.items()},
+        "transports": sim.transport_counters(),
         "events": [{"time_s": t, "entity": name, "text": text} for t, name, text in sim.events],
         "logs": {name: str(p) for name, p in sim.log_paths.items()},
     }

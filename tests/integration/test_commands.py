@@ -10,7 +10,7 @@ from unetyemu_ecs import Simulation, load_world_text
 from unetyemu_ecs.sensors.messages import msg_type
 from unetyemu_ecs.systems.car_state import DriveMode
 from unetyemu_ecs.systems.flight_state import FlightMode
-from unetyemu_ecs.transport.ros2.inbound import apply_command
+from unetyemu_ecs.transport.ros2.inbound import CommandContext, to_command
 
 WORLD = """
 world: {name: commands, physics_hz: 240, seed: 9}
@@ -22,6 +22,12 @@ vehicles:
   - {name: d1, type: quadrotor, preset: small, pose: {position_m: [0, 0, 0.2]}%s}
   - {name: c1, type: car, preset: medium, pose: {position_m: [0, 40, 0.9]}}
 """
+
+
+def apply_command(sim: Simulation, vehicle: str, kind: str, topic_kind: str, msg, hold_s: float | None = None) -> int:
+    """What the ROS 2 transport does with one sample of a command topic: build the command, submit it."""
+    context = CommandContext(sim.layout, tuple(sim.package_names))
+    return sim.inbox.submit(to_command(context, vehicle, kind, topic_kind, msg, hold_s))
 
 
 def make(extra: str = "", timeout: str = "") -> Simulation:
@@ -111,7 +117,6 @@ def test_a_target_behind_a_building_is_flown_but_warned_about_first():
         assert len(warnings) == 1 and "building" in warnings[0], warnings
         assert "ENU (49.8, 0.0," in warnings[0] or "ENU (49.7, 0.0," in warnings[0], warnings[0]
         # AND a target with a clear line of flight (over the roof) has none
-        sim.set_target("d1", 100.0, 0.0, 10.0)
         sim.set_target("d1", 0.0, 100.0, 10.0)
         sim.step(1)
         assert len([t for t in events_of(sim, "d1") if t.startswith("warning")]) == 1

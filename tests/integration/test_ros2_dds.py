@@ -164,7 +164,8 @@ def test_commands_from_a_ros2_peer_drive_the_vehicles_and_garbage_is_rejected_wi
     assert status is not None and status["mission"] == "hop" and status["state"] == "completed", events
     assert np.linalg.norm(final[:2] - [-5.0, 5.0]) < 1.0 and final[2] < 0.5
     # AND each piece of garbage was rejected with its reason, in the event log and on /rosout
-    reasons = ["4 values", "target values must be finite", "mission rejected", "cmd_vel linear must be finite",
+    reasons = ["4 values", "set_target('d1'): values must be finite", "mission rejected",
+               "cmd_vel('d1'): values must be finite",
                "rejected /c1/cmd_vel"]              # the car beyond its (or the API's) speed limit
     for reason in reasons:
         assert any(reason in e for e in events), (reason, events)

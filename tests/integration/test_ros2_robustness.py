@@ -120,7 +120,7 @@ def test_random_bytes_and_typed_garbage_on_every_command_topic_leave_the_command
             sim.run(duration=0.1)
         final = sim.position_enu_m("d1")
         events = [text for _, _, text in sim.events]
-        alive = sim._ros2_bridge.listener._thread.is_alive()
+        alive = sim.transports["ros2"].bridge.listener._thread.is_alive()
     # THEN the command thread is alive, the drone flew to the target, and the garbage was reported
     assert got["written"] + got["refused"] == len(payloads) and got["refused"] <= len(payloads) // 4
     assert alive

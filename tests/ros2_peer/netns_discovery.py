@@ -103,7 +103,7 @@ def main() -> None:
     from unetyemu_ecs import Simulation, load_world_text
 
     with Simulation(load_world_text(WORLD), ros2="dds") as sim:
-        sim_prefix = bytes(sim._ros2_bridge.publisher.participant.guid.bytes[:12]).hex()
+        sim_prefix = bytes(sim.transports["ros2"].bridge.publisher.participant.guid.bytes[:12]).hex()
         sim.run(duration=seconds, rate=1.0)
     fast_report = None
     if fast is not None:

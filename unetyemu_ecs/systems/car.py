@@ -10,7 +10,6 @@
 
 from __future__ import annotations
 
-import math
 
 import esper
 import numpy as np
@@ -90,12 +89,9 @@ class CarCommandSystem(esper.Processor):
         f = ctx.fleet
         row = f.row_of(ent)
         name = msg.vehicle
+        # values were range-checked once (command_checks) before they were queued; here only what
+        # depends on this car (its top speed) is checked
         if isinstance(msg, SetTarget):
-            values = [*msg.pos_enu_m, *(v for v in (msg.speed_m_s,) if v is not None)]
-            if not all(math.isfinite(v) for v in values):
-                return "target values must be finite numbers"
-            if msg.speed_m_s is not None and msg.speed_m_s <= 0.0:
-                return f"speed must be > 0, got {msg.speed_m_s}"
             self._give_path(ctx, ent, row, np.array([msg.pos_enu_m[:2]]), msg.speed_m_s, False, 0)
             ctx.services.note(ctx.sim_time_s, name, f"target set to {tuple(round(v, 2) for v in msg.pos_enu_m[:2])}")
             pos = f.pos_enu_m[row].copy()
@@ -103,26 +99,14 @@ class CarCommandSystem(esper.Processor):
             return ""
         if isinstance(msg, DriveRoute):
             wp = np.asarray(msg.waypoints, dtype=float)
-            if wp.ndim != 2 or wp.shape[1] != 2 or len(wp) == 0 or not np.all(np.isfinite(wp)):
-                return "a route needs at least one finite (x, y) waypoint"
-            if msg.speed_m_s is not None and not (math.isfinite(msg.speed_m_s) and msg.speed_m_s > 0.0):
-                return f"speed must be a finite number > 0, got {msg.speed_m_s}"
-            if msg.loop and len(wp) < 3:
-                return f"a loop needs at least 3 waypoints, got {len(wp)}"
-            self._give_path(ctx, ent, row, wp, msg.speed_m_s, msg.loop, max(0, int(msg.laps)))
+            self._give_path(ctx, ent, row, wp, msg.speed_m_s, msg.loop, msg.laps)
             ctx.services.note(ctx.sim_time_s, name, f"route of {len(wp)} waypoints" + (" (loop)" if msg.loop else ""))
             return ""
         if isinstance(msg, Drive):
-            cmd = (msg.throttle, msg.brake, msg.steering)
-            if not all(math.isfinite(v) for v in cmd) or not (-1 <= msg.throttle <= 1 and 0 <= msg.brake <= 1
-                                                              and -1 <= msg.steering <= 1):
-                return "car teleop needs finite throttle in [-1, 1], brake in [0, 1], steering in [-1, 1]"
-            f.drive_cmd[row] = cmd
+            f.drive_cmd[row] = (msg.throttle, msg.brake, msg.steering)
             _enter_mode(ctx, ent, row, DriveMode.MANUAL)
             return ""
         if isinstance(msg, CmdVel):
-            if not (math.isfinite(msg.forward_m_s) and math.isfinite(msg.yaw_rate_rad_s)):
-                return "cmd_vel values must be finite numbers"
             top = esper.component_for_entity(ent, CarDynamics).top_speed_m_s
             if abs(msg.forward_m_s) > top:
                 return f"forward speed {msg.forward_m_s} m/s is beyond the top speed {top} m/s"

@@ -1,7 +1,7 @@
 """COMMANDS phase: route queued commands (API, ROS 2, MAVLink, teleop) to the vehicles' command systems.
 
 Commands arrive as frozen messages in the inbox. :class:`InboxSystem` drains it once per step
-(keeping only the newest per vehicle and kind) into ``services.pending``; each vehicle type's
+(keeping of the streamed kinds only the newest per vehicle and kind) into ``services.pending``; each vehicle type's
 command system takes the messages addressed to its vehicles (:func:`claim`); whatever nobody took
 (an unknown vehicle, a drone command sent to a car) is rejected by :class:`UnclaimedCommandSystem`
 with a note in the event log. The drone's system is :mod:`.flight_commands`, the car's :mod:`.car`.
@@ -19,17 +19,27 @@ from ..components.body import Identity, RigidBody
 from ..phases import Phase
 from ..scene.obstacles import buildings_on_segment
 from ..transport.api import CommandStatus
+from ..transport.bus import Rejected
 from ..world import StepContext
 
 
 class InboxSystem(esper.Processor):
-    """Drain the inbox into ``services.pending``. Phase: COMMANDS, first. Always present."""
+    """Drain the inbox into ``services.pending`` (streamed kinds coalesced, every other command in
+    order: :meth:`Inbox.drain`); samples a transport could not turn into a command
+    (:class:`~unetyemu_ecs.transport.bus.Rejected`) get their REJECTED_INVALID result here.
+    Phase: COMMANDS, first. Always present."""
 
     phase = Phase.COMMANDS
     order = 0
 
     def process(self, ctx: StepContext) -> None:
-        ctx.services.pending = ctx.services.inbox.drain_latest()
+        pending = ctx.services.inbox.drain()
+        if any(type(m) is Rejected for m in pending):
+            for m in pending:
+                if type(m) is Rejected:
+                    ctx.services.report(ctx.sim_time_s, m, CommandStatus.REJECTED_INVALID, "invalid", m.text)
+            pending = [m for m in pending if type(m) is not Rejected]
+        ctx.services.pending = pending
 
 
 class UnclaimedCommandSystem(esper.Processor):

@@ -86,6 +86,13 @@ class CommandPort(Protocol):
         """Queue ``command`` for the next step; returns its id (> 0), which its result will carry."""
         ...
 
+    def reject(self, vehicle: str, kind: str, text: str, source: str) -> int:
+        """Report a sample that could not become a command (undecodable, wrong shape, a value out of
+        range: ``text`` says why; ``kind`` names what it came as, e.g. the ROS 2 topic). It gets a
+        REJECTED_INVALID result (reason ``invalid``) and an event at the next step, like a command
+        refused there; returns its id."""
+        ...
+
 
 @dataclass(frozen=True, slots=True)
 class Snapshot:

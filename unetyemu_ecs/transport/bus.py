@@ -1,9 +1,12 @@
 """Frozen command messages that cross into the simulation loop, and the inbox that carries them.
 
 Any producer (the Python API, the ROS 2 bridge, MAVLink endpoints, teleop) puts messages in the
-:class:`Inbox`; the COMMANDS phase drains it once per step, keeping for each vehicle and kind only
-the newest message (a teleop stream at 50 Hz must not queue up). Messages use the engine's units and
-frames (ENU metres, radians) and name the vehicle; they are validated again when applied.
+:class:`Inbox` (:meth:`Inbox.submit` gives each its id); the COMMANDS phase drains it once per
+step in arrival order, keeping of the streamed kinds (:data:`STREAM_KINDS`: sticks, cmd_vel,
+offboard setpoints) only the newest per vehicle and kind (a teleop stream at 50 Hz must not queue
+up); every other command is applied, in order, and gets a result. Messages use the engine's units and
+frames (ENU metres, radians) and name the vehicle; their values are checked once, by :mod:`unetyemu_ecs.command_checks`, before
+they are queued (the command systems check only what depends on the vehicle's state).
 
 Streamed commands (teleop sticks, cmd_vel) carry ``hold_s``: a command from a stream (ROS 2
 topics) lapses when no newer one arrives within the vehicle's command timeout, and the vehicle
@@ -367,14 +370,30 @@ Command = (SetTarget | LoadMission | Teleop | Arm | Drive | CmdVel | DriveRoute 
            | Orbit | FollowTargetFix | SetGeofence | SetRallyPoints)
 
 
+@dataclass(frozen=True, slots=True)
+class Rejected:
+    """A sample a transport could not turn into a command (undecodable, wrong shape, out of range):
+    queued by :meth:`Inbox.reject` so that it gets a :class:`~.api.CommandResult` (REJECTED_INVALID,
+    reason ``invalid``) and an event like any refused command. ``kind`` names what it came as (a
+    ROS 2 topic, a MAVLink message name)."""
+
+    vehicle: str
+    kind: str
+    text: str
+    command_id: int = 0
+    source: str = "api"
+
+
 class Inbox:
-    """Thread-safe queue of commands for the simulation loop."""
+    """Thread-safe queue of commands for the simulation loop (the :class:`~.api.CommandPort` of every
+    transport and of the Python API)."""
 
     def __init__(self) -> None:
-        self._q: queue.SimpleQueue[Command] = queue.SimpleQueue()
+        self._q: queue.SimpleQueue[Command | Rejected] = queue.SimpleQueue()
         self._ids = itertools.count(1)         # next() is atomic under the GIL: ids are unique across threads
 
     def put(self, msg: Command) -> None:
+        """Queue ``msg`` as it is (its ``command_id`` unchanged; prefer :meth:`submit`)."""
         self._q.put(msg)
 
     def submit(self, msg: Command) -> int:
@@ -383,15 +402,28 @@ class Inbox:
         self._q.put(dataclasses.replace(msg, command_id=command_id))
         return command_id
 
-    def drain_latest(self) -> list[Command]:
-        """Take everything queued; keep the newest per (vehicle, kind), in arrival order of those."""
-        latest: dict[tuple[str, str], tuple[int, Command]] = {}
-        n = 0
+    def reject(self, vehicle: str, kind: str, text: str, source: str) -> int:
+        """Report a sample from ``source`` that could not become a command (thread-safe): at the next
+        step it gets a REJECTED_INVALID result with ``text`` and an event; returns its id."""
+        command_id = next(self._ids)
+        self._q.put(Rejected(vehicle, kind, text, command_id, source))
+        return command_id
+
+    def drain(self) -> list[Command | Rejected]:
+        """Take everything queued, in arrival order, except that of the streamed kinds
+        (:data:`STREAM_KINDS`) only the newest per vehicle and kind is kept (at its place)."""
+        taken: list[Command | Rejected] = []
+        newest: dict[tuple[str, str], int] = {}
         while True:
             try:
                 msg = self._q.get_nowait()
             except queue.Empty:
                 break
-            latest[(msg.vehicle, msg.kind)] = (n, msg)
-            n += 1
-        return [m for _, m in sorted(latest.values(), key=lambda nm: nm[0])]
+            if msg.kind in STREAM_KINDS and not isinstance(msg, Rejected):
+                newest[(msg.vehicle, msg.kind)] = len(taken)
+            taken.append(msg)
+        if not newest:
+            return taken
+        keep = set(newest.values())
+        return [m for i, m in enumerate(taken)
+                if m.kind not in STREAM_KINDS or isinstance(m, Rejected) or i in keep]

@@ -20,6 +20,7 @@ from typing import Any
 from xml.sax.saxutils import quoteattr
 
 from ...sensors.messages import deserialize, msg_type, serialize, typestore
+from ..api import TransportError
 from .dds_types import idl_type, to_idl
 
 NODE_NAME = "unetyemu_sim"
@@ -148,7 +149,7 @@ def latched_depth(ros_topic: str) -> int | None:
 MAX_BLOCKING_MS = 20     # a reliable write waits at most this for a slow (or dead) reader, then fails
 
 
-class Ros2Error(RuntimeError):
+class Ros2Error(TransportError):
     """ROS 2 cannot start here (bad ROS_DOMAIN_ID, cyclonedds missing or failing); the message says why."""
 
 

@@ -5,7 +5,7 @@ node ``/unetyemu_sim`` lives in its own rclpy context, so it neither needs nor d
 ``rclpy.init()``. Messages stay the rosbags objects the sensors build: publishers send their CDR
 bytes (``Publisher.publish`` takes serialised bytes and hands them to the RMW unchanged), and the
 command topics are subscribed raw and decoded with rosbags, so both backends hand
-:func:`~.inbound.apply_command` the same objects. Graph identity, type hashes and discovery are
+:func:`~.inbound.to_command` the same objects. Graph identity, type hashes and discovery are
 rclpy's own. QoS as in :mod:`.dds_backend`: Reliable / Volatile / KeepLast(10); TransientLocal ``/tf_static``
 (KeepLast(1)), ``/rosout`` (1000) and ``/<v>/mission/status`` (1). Parameters (the world's name
 and seed) are declared read-only on the node, which serves rclpy's parameter services.
