@@ -24,11 +24,10 @@ from .systems.flight_commands import FlightCommandSystem
 from .systems.energy import EnergySystem
 from .systems.guidance import RouteFollowingSystem
 from .systems.mission import EmergencyLandingSystem, MissionSystem
+from .systems.navigator import LandDetectorSystem, NavigatorSystem
 from .systems.motors import MotorSystem
 from .systems.payload import PayloadSystem
 from .transport.mavlink.component import MavlinkEndpoint
-from .transport.api import TransportPlugin
-from .transport.ros2.transport import create_ros2_transport
 
 QUADROTOR = frozenset({"quadrotor"})
 CAR = frozenset({"car"})
@@ -42,7 +41,8 @@ MOTORS = ComponentPlugin(
     summary="four X-configured motors, thrust applied at each motor (after the mixer layer), optional lag")
 
 GUIDANCE = ComponentPlugin(
-    component=GuidanceLimits, systems=(FlightCommandSystem, MissionSystem, EmergencyLandingSystem, RouteFollowingSystem),
+    component=GuidanceLimits, systems=(FlightCommandSystem, MissionSystem, EmergencyLandingSystem, RouteFollowingSystem,
+                                       LandDetectorSystem, NavigatorSystem),
     applies_to=QUADROTOR,
     summary="flight modes, commands, missions and route following (pure pursuit), with their limits")
 PAYLOAD = ComponentPlugin(component=PayloadBay, systems=(PayloadSystem,), applies_to=QUADROTOR,
@@ -94,7 +94,3 @@ CAMERA = SensorPlugin(component=RgbCamera, system=RgbCameraSystem,
                       summary="RGB camera (ray cast): sensor_msgs/Image rgb8 + CameraInfo, optical frame")
 DEPTH_CAMERA = SensorPlugin(component=DepthCamera, system=DepthCameraSystem,
                             summary="depth camera (ray cast): sensor_msgs/Image 32FC1 metres (+inf no return) + CameraInfo")
-
-ROS2_TRANSPORT = TransportPlugin(
-    create=create_ros2_transport,
-    summary="ROS 2 node (--ros2 dds|rclpy): sensors, TF, /clock, mission status, /rosout; command topics")

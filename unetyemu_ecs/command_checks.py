@@ -183,3 +183,121 @@ def check_drive_route(vehicle: str, layout: SceneLayout, waypoints: Sequence[tup
 __all__ = ["MAX_HOLD_S", "MAX_LAPS", "MAX_YAW_RATE_RAD_S", "check_armed", "check_cmd_vel", "check_drive",
            "check_drive_route", "check_hold_s", "check_in_world", "check_set_target", "check_teleop",
            "finite_floats", "is_real"]
+
+
+# -- PX4-style navigation commands (navigation.commands_api, MAVLink, ROS 2) ------------------------
+# Ranges and why: heights within [0, MAX_Z_M] like a target's z; speeds of ChangeSpeed within the
+# mission caps (cruise MAX_CRUISE_SPEED_M_S, climb MAX_CLIMB_SPEED_M_S, descent MAX_DESCENT_SPEED_M_S,
+# docs/architecture.md §5); a mission step index within [0, MAX_MISSION_STEPS); parameters within
+# their PX4 ranges (navigation.params); at most MAX_WAYPOINTS rally points, each inside the world.
+
+NAV_SPEED_KINDS = ("ground", "climb", "descent")
+
+
+def check_nav_mode(vehicle: str, mode: object) -> int:
+    """A navigation mode: a ``NavState`` or its name (``"HOLD"``, ``"rtl"`` ...); returns its number."""
+    from .systems.flight_state import NavState
+
+    what = f"set_nav_mode({vehicle!r})"
+    if isinstance(mode, str):
+        try:
+            return int(NavState[mode.strip().upper()])
+        except KeyError:
+            pass
+    elif isinstance(mode, (int, np.integer)) and not isinstance(mode, bool) and mode in NavState._value2member_map_:
+        return int(mode)
+    raise ValueError(f"{what}: mode must be one of {', '.join(m.name for m in NavState)}, got {mode!r}")
+
+
+def check_takeoff(vehicle: str, alt_enu_m: float | None = None, yaw_deg: float | None = None
+                  ) -> tuple[float | None, float | None]:
+    """A takeoff altitude (world z [m] in (0, MAX_Z_M]; None: home + MIS_TAKEOFF_ALT) and heading [deg ENU]
+    (None: keep); returns ``(alt_enu_m, yaw_rad)``."""
+    what = f"takeoff({vehicle!r})"
+    if alt_enu_m is not None and not (is_real(alt_enu_m) and math.isfinite(alt_enu_m) and 0.0 < alt_enu_m <= MAX_Z_M):
+        raise ValueError(f"{what}: alt_m must be None or a number in (0, {MAX_Z_M:g}] m (ENU z), got {alt_enu_m!r}")
+    if yaw_deg is not None and not (is_real(yaw_deg) and math.isfinite(yaw_deg) and abs(yaw_deg) <= MAX_YAW_DEG):
+        raise ValueError(f"{what}: yaw_deg must be None or a number in [-{MAX_YAW_DEG:g}, {MAX_YAW_DEG:g}] deg, "
+                         f"got {yaw_deg!r}")
+    return (None if alt_enu_m is None else float(alt_enu_m)), (None if yaw_deg is None else math.radians(yaw_deg))
+
+
+def check_land_xy(vehicle: str, layout: SceneLayout, xy: Sequence[float] | None) -> tuple[float, float] | None:
+    """Where to land: None (straight below) or an ENU (x, y) [m] inside the world."""
+    what = f"land({vehicle!r})"
+    if xy is None:
+        return None
+    try:
+        x, y = xy
+    except (TypeError, ValueError):
+        raise ValueError(f"{what}: xy must be None or an (x, y) pair of numbers, got {xy!r}") from None
+    if not all(is_real(v) and math.isfinite(v) for v in (x, y)):
+        raise ValueError(f"{what}: xy must be finite numbers, got {xy!r}")
+    check_in_world(what, layout, [(x, y)])
+    return float(x), float(y)
+
+
+def check_position(what: str, layout: SceneLayout, pos: Sequence[float]) -> tuple[float, float, float]:
+    """An ENU position (x, y, z) [m]: x, y inside the world, z in [0, MAX_Z_M]."""
+    try:
+        x, y, z = pos
+    except (TypeError, ValueError):
+        raise ValueError(f"{what}: expected an (x, y, z) position, got {pos!r}") from None
+    if not all(is_real(v) and math.isfinite(v) for v in (x, y, z)):
+        raise ValueError(f"{what}: position must be finite numbers, got {pos!r}")
+    check_in_world(what, layout, [(x, y)])
+    if not 0.0 <= z <= MAX_Z_M:
+        raise ValueError(f"{what}: z must be in [0, {MAX_Z_M:g}] m, got {z!r}")
+    return float(x), float(y), float(z)
+
+
+def check_param(vehicle: str, name: object, value: object) -> tuple[str, float]:
+    """A flight parameter and its new value (``navigation.params``: known name, PX4 range)."""
+    from .navigation.params import check_param as param_error
+
+    what = f"set_param({vehicle!r})"
+    if not isinstance(name, str):
+        raise ValueError(f"{what}: the parameter name must be a string, got {name!r}")
+    error = param_error(name, value)    # type: ignore[arg-type]
+    if error:
+        raise ValueError(f"{what}: {error}")
+    return name, float(value)           # type: ignore[arg-type]
+
+
+def check_change_speed(vehicle: str, which: object, speed_m_s: object) -> tuple[str, float]:
+    """ChangeSpeed: ``which`` in NAV_SPEED_KINDS, the speed within that kind's mission cap."""
+    from .mission.spec import MAX_CLIMB_SPEED_M_S, MAX_DESCENT_SPEED_M_S
+
+    what = f"change_speed({vehicle!r})"
+    caps = {"ground": MAX_CRUISE_SPEED_M_S, "climb": MAX_CLIMB_SPEED_M_S, "descent": MAX_DESCENT_SPEED_M_S}
+    if which not in caps:
+        raise ValueError(f"{what}: which must be one of {', '.join(NAV_SPEED_KINDS)}, got {which!r}")
+    if not (is_real(speed_m_s) and math.isfinite(speed_m_s) and 0.0 < speed_m_s <= caps[which]):  # type: ignore[operator]
+        raise ValueError(f"{what}: {which} speed must be in (0, {caps[which]:g}] m/s, got {speed_m_s!r}")
+    return str(which), float(speed_m_s)  # type: ignore[arg-type]
+
+
+def check_mission_step(vehicle: str, step: object) -> int:
+    """A mission step index: an integer in [0, MAX_MISSION_STEPS) (the mission's own length is checked when applied)."""
+    from .config.limits import MAX_MISSION_STEPS
+
+    if not isinstance(step, (int, np.integer)) or isinstance(step, bool) or not 0 <= step < MAX_MISSION_STEPS:
+        raise ValueError(f"mission step of {vehicle!r} must be an integer in [0, {MAX_MISSION_STEPS}), got {step!r}")
+    return int(step)
+
+
+def check_flag(what: str, flag: object) -> bool:
+    """True or False (numpy bools too); numbers and strings are refused."""
+    if not isinstance(flag, (bool, np.bool_)):
+        raise ValueError(f"{what} must be True or False, got {flag!r}")
+    return bool(flag)
+
+
+def check_rally_points(vehicle: str, layout: SceneLayout, points: Iterable[Sequence[float]]
+                       ) -> tuple[tuple[float, float, float], ...]:
+    """Rally points: at most MAX_WAYPOINTS ENU positions, each as check_position."""
+    what = f"set_rally_points({vehicle!r})"
+    pts = tuple(check_position(what, layout, p) for p in points)
+    if len(pts) > MAX_WAYPOINTS:
+        raise ValueError(f"{what}: at most {MAX_WAYPOINTS} rally points, got {len(pts)}")
+    return pts

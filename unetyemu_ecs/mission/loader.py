@@ -4,7 +4,7 @@ Our format (docs/architecture.md §5; the schema is :mod:`unetyemu_ecs.mission.s
 -------------------------------------------------------------------------
 A JSON object ``{"name": ..., "cruise_speed": ..., "climb_speed": ..., "descent_speed": ...,
 "steps": [...]}``, or a bare JSON list of steps. Each step is
-``{"type": "takeoff"|"cruise"|"land"|"pickup"|"deliver"|"recharge"|"idle", "wait_before": s,
+``{"type": "takeoff"|"cruise"|"land"|"pickup"|"deliver"|"recharge"|"idle"|"return", "wait_before": s,
 "wait_after": s, "waypoints": [{"x", "y", "z", "yaw_deg", "cruise_speed", "climb_speed",
 "descent_speed"}], "altitude_m", "package", "pad", "duration_s", "target_soc_frac",
 "charge_power_w"}`` in ENU metres, m/s and degrees (0 = east, counter-clockwise). YAML is accepted

@@ -1,7 +1,7 @@
 """Mission definitions: the schema of our mission JSON (docs/architecture.md §5), as frozen dataclasses.
 
 A mission is a list of steps (``takeoff``, ``cruise``, ``land``, ``pickup``, ``deliver``,
-``recharge``, ``idle``) run in order by the MISSION-phase state machine
+``recharge``, ``idle``, ``return``) run in order by the MISSION-phase state machine
 (:mod:`unetyemu_ecs.systems.mission`). Each step waits ``wait_before`` seconds, does its job, then
 waits ``wait_after`` seconds.
 
@@ -24,7 +24,7 @@ from typing import Annotated, Literal, get_args
 from ..config.limits import MAX_DURATION_S, MAX_MISSION_STEPS, MAX_WAIT_S, MAX_WAYPOINTS, XM, ZM, Deg, Name, MAX_Z_M
 from ..config.schema import FieldError, Ge, Gt, Le, MaxLen, NonEmpty
 
-StepType = Literal["takeoff", "cruise", "land", "pickup", "deliver", "recharge", "idle"]
+StepType = Literal["takeoff", "cruise", "land", "pickup", "deliver", "recharge", "idle", "return"]
 STEP_TYPES: tuple[str, ...] = get_args(StepType)
 
 # Speed caps of a mission (docs/architecture.md §5). Exceeding one is an error, never a
@@ -65,6 +65,7 @@ _USES: dict[str, frozenset[str]] = {
     "deliver": frozenset({"waypoints", "pad"}),
     "recharge": frozenset({"waypoints", "pad", "duration_s", "target_soc_frac", "charge_power_w"}),
     "idle": frozenset({"duration_s"}),
+    "return": frozenset(),
 }
 # Step types that go to (at most) one place: the state machine reads a single waypoint.
 _ONE_PLACE = frozenset({"takeoff", "land", "pickup", "deliver", "recharge"})
@@ -84,6 +85,9 @@ class MissionStep:
     recharge : land as ``land`` does (if airborne), charge to ``target_soc_frac`` at
                ``charge_power_w`` (None: the vehicle's charger), for at most ``duration_s``.
     idle     : hold (hover, or stay on the ground) for ``duration_s``.
+    return   : PX4's RTL: climb to RTL_RETURN_ALT above the closest of home and the rally points, fly
+               there at MPC_XY_CRUISE, descend to RTL_DESCEND_ALT, land and disarm (the drone's
+               flight parameters, ``navigation.params``).
     """
 
     type: StepType

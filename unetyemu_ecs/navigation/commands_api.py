@@ -3,11 +3,183 @@
 
 Each method checks its arguments with :mod:`unetyemu_ecs.command_checks` (``ValueError`` naming what
 is wrong), queues the command and returns its id; the result (accepted, or rejected with a reason)
-appears in :meth:`Simulation.command_result` after the next step.
+appears in :meth:`nav_result` after the next step. The same commands come from ROS 2 and MAVLink.
+Positions are ENU metres (z = height above the world's ground plane), yaw in degrees ENU (0 = east,
+counter-clockwise), like the rest of the API.
 """
 
 from __future__ import annotations
 
+from typing import Any
+
+import esper
+import numpy as np
+
+from .. import command_checks as cc
+from ..systems.flight_state import LandedState, MissionState, NavState
+from ..transport.bus import (Arm, ChangeSpeed, Gripper, Land, PauseMission, ReturnToLaunch, SetHome,
+                             SetMissionCurrent, SetNavMode, SetParam, SetRallyPoints, StartMission, StoreMission,
+                             Takeoff, Terminate)
+from .params import PARAM_BY_NAME, FlightParams
+
 
 class NavigationApi:
     """Navigation-mode commands of a :class:`~unetyemu_ecs.app.Simulation` (mixed into it)."""
+
+    # provided by Simulation
+    inbox: Any
+    layout: Any
+
+    # -- modes -------------------------------------------------------------------------------
+    def set_armed(self, name: str, armed: bool = True, *, force: bool = False) -> int:
+        """Arm or disarm drone ``name`` with PX4's checks: arming is refused (REJECTED_STATE) with reason
+        ``low_battery``, ``overweight``, ``motors_disabled`` or ``in_air``; disarming in the air with
+        ``in_air``. ``force`` skips the checks (MAVLink param2 = 21196). Returns the command id."""
+        self._drone(name)
+        return self.inbox.submit(Arm(name, cc.check_armed(name, armed), cc.check_flag("force", force)))
+
+    def set_nav_mode(self, name: str, mode: str | int) -> int:
+        """Switch drone ``name`` to navigation mode ``mode`` (a :class:`NavState` or its name: "HOLD",
+        "TAKEOFF", "LAND", "RTL", "MISSION"). Returns the command id."""
+        self._drone(name)
+        return self.inbox.submit(SetNavMode(name, cc.check_nav_mode(name, mode)))
+
+    def hold(self, name: str) -> int:
+        """HOLD: brake and hover where the drone is (a running mission pauses)."""
+        return self.set_nav_mode(name, NavState.HOLD)
+
+    def takeoff(self, name: str, alt_m: float | None = None, yaw_deg: float | None = None) -> int:
+        """TAKEOFF: climb straight up at MPC_TKO_SPEED to world height ``alt_m`` (None: home +
+        MIS_TAKEOFF_ALT), then HOLD. The drone must be armed (else REJECTED_STATE ``not_armed``)."""
+        self._drone(name)
+        return self.inbox.submit(Takeoff(name, *cc.check_takeoff(name, alt_m, yaw_deg)))
+
+    def land(self, name: str, xy: tuple[float, float] | None = None) -> int:
+        """LAND at ENU ``xy`` (None: straight below): MPC_Z_V_AUTO_DN, then MPC_LAND_SPEED below
+        MPC_LAND_ALT2; touchdown from the land detector; disarms COM_DISARM_LAND seconds later."""
+        self._drone(name)
+        return self.inbox.submit(Land(name, cc.check_land_xy(name, self.layout, xy)))
+
+    def return_to_launch(self, name: str) -> int:
+        """RTL: climb to RTL_RETURN_ALT above the closest of home and the rally points, fly there at
+        MPC_XY_CRUISE, descend to RTL_DESCEND_ALT, wait RTL_LAND_DELAY, land and disarm."""
+        self._drone(name)
+        return self.inbox.submit(ReturnToLaunch(name))
+
+    def terminate(self, name: str) -> int:
+        """Flight termination: motors off now, wherever the drone is."""
+        self._drone(name)
+        return self.inbox.submit(Terminate(name))
+
+    # -- missions ----------------------------------------------------------------------------
+    def store_mission(self, name: str, mission: Any) -> int:
+        """Keep ``mission`` (JSON text or a MissionSpec; None clears it) as the drone's mission without
+        starting it (``mission_state`` STORED); :meth:`start_mission` or MISSION mode runs it."""
+        self._drone(name)
+        spec = None if mission is None else self._checked_mission(name, mission)
+        return self.inbox.submit(StoreMission(name, spec))
+
+    def start_mission(self, name: str, first_step: int = 0) -> int:
+        """Run the stored mission from ``first_step``; on the ground a mission whose step flies somewhere
+        takes off first (to home + MIS_TAKEOFF_ALT or the first waypoint's height, the higher)."""
+        self._drone(name)
+        return self.inbox.submit(StartMission(name, cc.check_mission_step(name, first_step)))
+
+    def set_mission_current(self, name: str, step: int) -> int:
+        """Make ``step`` the mission's current step (flown next, or now if the mission runs)."""
+        self._drone(name)
+        return self.inbox.submit(SetMissionCurrent(name, cc.check_mission_step(name, step)))
+
+    def pause_mission(self, name: str, resume: bool = False) -> int:
+        """Pause the running mission (HOLD), or with ``resume`` continue it at its current step."""
+        self._drone(name)
+        return self.inbox.submit(PauseMission(name, cc.check_flag("resume", resume)))
+
+    # -- parameters, home, speed, rally, gripper -------------------------------------------------
+    def set_param(self, name: str, param: str, value: float) -> int:
+        """Set flight parameter ``param`` (``navigation.params.PX4_PARAMS``) of drone ``name``."""
+        self._drone(name)
+        return self.inbox.submit(SetParam(name, *cc.check_param(name, param, value)))
+
+    def set_home(self, name: str, pos: tuple[float, float, float] | None = None) -> int:
+        """Set the home position to ENU ``pos`` [m] (None: where the drone is)."""
+        self._drone(name)
+        checked = None if pos is None else cc.check_position(f"set_home({name!r})", self.layout, pos)
+        return self.inbox.submit(SetHome(name, checked))
+
+    def change_speed(self, name: str, speed_m_s: float, which: str = "ground") -> int:
+        """Change the ``which`` ("ground", "climb", "descent") speed of the current leg and of the
+        automatic modes after it."""
+        self._drone(name)
+        kind, speed = cc.check_change_speed(name, which, speed_m_s)
+        return self.inbox.submit(ChangeSpeed(name, kind, speed))
+
+    def set_rally_points(self, name: str, points: list[tuple[float, float, float]]) -> int:
+        """Replace the drone's rally points (ENU [m]); RTL goes to the closest of home and these."""
+        self._drone(name)
+        return self.inbox.submit(SetRallyPoints(name, cc.check_rally_points(name, self.layout, points)))
+
+    def gripper(self, name: str, grab: bool) -> int:
+        """Grab the package within reach (True) or release the one carried (False), now."""
+        self._drone(name)
+        return self.inbox.submit(Gripper(name, cc.check_flag("grab", grab)))
+
+    # -- queries -----------------------------------------------------------------------------
+    def _fleet_value(self, name: str, array: str) -> Any:
+        self._drone(name)
+        return getattr(self._context().fleet, array)[self.row(name)]
+
+    def nav_state(self, name: str) -> str:
+        """The drone's navigation mode (a :class:`NavState` name: "HOLD", "TAKEOFF", "RTL" ...)."""
+        return NavState(int(self._fleet_value(name, "nav_state"))).name
+
+    def landed_state(self, name: str) -> str:
+        """The land detector's verdict: "ON_GROUND", "IN_AIR", "TAKEOFF", "LANDING" ("UNDEFINED" before the first step)."""
+        return LandedState(int(self._fleet_value(name, "landed_state"))).name
+
+    def mission_state(self, name: str) -> str:
+        """The drone's mission state ("NONE", "STORED", "RUNNING", "PAUSED", "COMPLETED", "FAILED", "CANCELLED")."""
+        return MissionState(int(self._fleet_value(name, "mission_state"))).name
+
+    def is_armed(self, name: str) -> bool:
+        """Whether the drone's motors are armed."""
+        return int(self._fleet_value(name, "flight_mode")) != 0
+
+    def home_enu_m(self, name: str) -> np.ndarray | None:
+        """The drone's home position, ENU [m] (None before it is set: first fix or arming)."""
+        if not self._fleet_value(name, "home_set"):
+            return None
+        return np.array(self._fleet_value(name, "home_enu_m"), dtype=float)
+
+    def get_param(self, name: str, param: str) -> float:
+        """The value of flight parameter ``param`` of drone ``name``."""
+        ent = self._drone(name)
+        if param not in PARAM_BY_NAME:
+            raise ValueError(f"get_param({name!r}): unknown flight parameter {param!r}")
+        with self.ecs.active():
+            params = esper.try_component(ent, FlightParams)
+        return PARAM_BY_NAME[param].default if params is None else params[param]
+
+    def nav_result(self, command_id: int) -> Any:
+        """The CommandResult of command ``command_id`` (None until it has been applied)."""
+        for result in reversed(self.services.results):
+            if result.command_id == command_id:
+                return result
+        return None
+
+    def _checked_mission(self, name: str, mission: Any) -> Any:
+        from ..config.schema import ConfigError, Issue
+        from ..mission import MissionSpec, parse_mission
+        from ..mission.refs import mission_reference_issues
+
+        if isinstance(mission, (str, bytes, bytearray)):
+            spec = parse_mission(mission, source=f"mission for {name}")
+        elif isinstance(mission, MissionSpec):
+            spec = mission
+        else:
+            raise ValueError(f"store_mission({name!r}): expected mission text (JSON) or a MissionSpec, "
+                             f"got {type(mission).__name__}")
+        problems = mission_reference_issues(spec, self.layout, self.package_names)
+        if problems:
+            raise ConfigError([Issue(f"mission for {name}", None, path, msg) for path, msg in problems])
+        return spec

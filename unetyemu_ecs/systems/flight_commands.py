@@ -2,19 +2,23 @@
 
 from __future__ import annotations
 
-import math
-
 import esper
 import numpy as np
 
 from ..components.body import FleetSlot, Identity
-from ..components.flight import GuidanceLimits, TeleopScript
+from ..components.flight import EnergyModel, GuidanceLimits, PayloadBay, TeleopScript
 from ..components.mission import MissionRuntime
+from ..navigation.state import NavRuntime
 from ..phases import Phase
-from ..transport.bus import Arm, CmdVel, LoadMission, SetTarget, Teleop
+from ..transport.api import CommandStatus
+from ..transport.bus import (Arm, ChangeSpeed, CmdVel, Gripper, Land, LoadMission, PauseMission, ReturnToLaunch,
+                             SetHome, SetMissionCurrent, SetNavMode, SetParam, SetRallyPoints, SetTarget, StartMission,
+                             StoreMission, Takeoff, Teleop, Terminate)
 from ..world import StepContext
-from .commands import serve_commands, warn_if_obstructed
-from .flight_state import FlightMode, Route, set_route
+from .commands import Refusal, serve_commands, warn_if_obstructed
+from .flight_state import (FlightMode, LandedState, MissionState, NavState, PayloadRequest, PayloadResult, Route,
+                           set_route)
+from .navigator import disarm, ensure_all_drones, ensure_nav, hold, start_land, start_rtl, start_takeoff
 
 
 class FlightCommandSystem(esper.Processor):
@@ -33,6 +37,7 @@ class FlightCommandSystem(esper.Processor):
 
     def process(self, ctx: StepContext) -> None:
         f = ctx.fleet
+        ensure_all_drones()
         serve_commands(ctx, GuidanceLimits, self._take, self._hold_after_lapse)
         for ent, (slot, script) in esper.get_components(FleetSlot, TeleopScript):
             k = self._script_next.get(ent, 0)
@@ -44,6 +49,7 @@ class FlightCommandSystem(esper.Processor):
                 applied = True
             if applied:
                 f.flight_mode[slot.row] = FlightMode.MANUAL
+                f.nav_state[slot.row] = NavState.MANUAL
                 _cancel_mission(ctx, ent, "teleop")
             self._script_next[ent] = k
 
@@ -67,65 +73,321 @@ class FlightCommandSystem(esper.Processor):
             return
         was = "teleop" if f.flight_mode[row] == FlightMode.MANUAL else "cmd_vel"
         _hold_position(f, row)
+        f.nav_state[row] = NavState.HOLD
         name = esper.component_for_entity(ent, Identity).name
         ctx.services.note(ctx.sim_time_s, name, f"{was} timed out (no new command within the command timeout): "
                                                 "holding position")
 
-    def _apply(self, ctx: StepContext, ent: int, msg: object) -> str:
+    def _apply(self, ctx: StepContext, ent: int, msg: object) -> str | Refusal:
+        """Apply one command (values already checked by ``command_checks``); refuse it when the drone's
+        state does not allow it. Returns "" (accepted), a Refusal, or why a value is invalid."""
         f = ctx.fleet
         row = esper.component_for_entity(ent, FleetSlot).row
         lim = esper.component_for_entity(ent, GuidanceLimits)
+        handler = getattr(self, "_on_" + type(msg).__name__, None)
+        if handler is not None:
+            return handler(ctx, ent, row, msg)
         if isinstance(msg, SetTarget):
-            values = [*msg.pos_enu_m, *(v for v in (msg.yaw_rad, msg.speed_m_s) if v is not None)]
-            if not all(math.isfinite(v) for v in values):
-                return "target values must be finite numbers"
-            if msg.speed_m_s is not None and msg.speed_m_s <= 0.0:
-                return f"speed must be > 0, got {msg.speed_m_s}"
             pos = f.pos_enu_m[row].copy()
             cruise = msg.speed_m_s if msg.speed_m_s is not None else lim.cruise_speed_m_s
             sp = (cruise, lim.climb_speed_m_s, lim.descent_speed_m_s)
             yaw = np.nan if msg.yaw_rad is None else msg.yaw_rad
             _cancel_mission(ctx, ent, "set_target")
+            _end_nav_mode(ent)
             f.flight_mode[row] = FlightMode.AUTO
+            f.nav_state[row] = NavState.GOTO
             set_route(f, row, Route(np.array([pos, msg.pos_enu_m], dtype=float), np.array([sp, sp]), float(yaw)))
             ctx.services.note(ctx.sim_time_s, msg.vehicle, f"target set to {tuple(round(v, 2) for v in msg.pos_enu_m)}")
             warn_if_obstructed(ctx, ent, msg.vehicle, pos, np.asarray(msg.pos_enu_m, dtype=float))
             return ""
         if isinstance(msg, Teleop):
-            if len(msg.stick) != 4 or not all(math.isfinite(v) and -1.0 <= v <= 1.0 for v in msg.stick):
-                return "teleop needs 4 finite values in [-1, 1]"
             f.stick[row] = msg.stick
             if f.flight_mode[row] != FlightMode.MANUAL:
                 _cancel_mission(ctx, ent, "teleop")
+                _end_nav_mode(ent)
                 f.flight_mode[row] = FlightMode.MANUAL
+            f.nav_state[row] = NavState.MANUAL
             return ""
         if isinstance(msg, CmdVel):
-            cmd = (msg.forward_m_s, msg.left_m_s, msg.up_m_s, msg.yaw_rate_rad_s)
-            if not all(math.isfinite(v) for v in cmd):
-                return "cmd_vel values must be finite numbers"
-            f.vel_cmd_flu_m_s[row] = cmd[:3]
+            f.vel_cmd_flu_m_s[row] = (msg.forward_m_s, msg.left_m_s, msg.up_m_s)
             f.yaw_rate_cmd_rad_s[row] = msg.yaw_rate_rad_s
             if f.flight_mode[row] != FlightMode.VELOCITY:
                 _cancel_mission(ctx, ent, "cmd_vel")
+                _end_nav_mode(ent)
                 f.flight_mode[row] = FlightMode.VELOCITY    # the position layer restarts its memory
+            f.nav_state[row] = NavState.OFFBOARD
             return ""
         if isinstance(msg, LoadMission):
             if esper.has_component(ent, MissionRuntime):
                 esper.remove_component(ent, MissionRuntime)
             esper.add_component(ent, MissionRuntime(spec=msg.mission, stage_started_s=ctx.sim_time_s))
+            _end_nav_mode(ent)
+            f.nav_state[row] = NavState.MISSION
+            f.mission_state[row] = MissionState.RUNNING
             ctx.services.note(ctx.sim_time_s, msg.vehicle, f"mission {msg.mission.name} loaded "
                                                            f"({len(msg.mission.steps)} steps)")
             return ""
-        if isinstance(msg, Arm):
-            if msg.armed:
-                if f.flight_mode[row] == FlightMode.DISARMED:
-                    _hold_position(f, row)
-            else:
-                _cancel_mission(ctx, ent, "disarm")
-                f.flight_mode[row] = FlightMode.DISARMED
-                set_route(f, row, None)
+        return Refusal(CommandStatus.REJECTED_INVALID, "unsupported",
+                       f"a drone does not take {type(msg).__name__} commands yet")
+
+    # -- arming ------------------------------------------------------------------------------
+    def _on_Arm(self, ctx: StepContext, ent: int, row: int, msg: Arm) -> str | Refusal:
+        f = ctx.fleet
+        nav, _ = ensure_nav(ent)
+        armed = f.flight_mode[row] != FlightMode.DISARMED
+        if msg.armed:
+            if armed:
+                return ""
+            if not msg.force:
+                why = arming_refusal(f, ent, row)
+                if why is not None:
+                    return why
+            if f.landed_state[row] in (LandedState.ON_GROUND, LandedState.UNDEFINED):
+                f.home_enu_m[row] = f.pos_enu_m[row]
+                f.home_set[row] = True
+            nav.armed_s, nav.took_off = ctx.sim_time_s, False
+            f.flight_mode[row] = FlightMode.AUTO
+            hold(ctx, ent, row)
             return ""
-        return f"unsupported command {type(msg).__name__}"
+        if not armed:
+            return ""
+        if not msg.force and f.landed_state[row] not in (LandedState.ON_GROUND, LandedState.UNDEFINED):
+            return Refusal(CommandStatus.REJECTED_STATE, "in_air",
+                           "Disarming denied: the drone is in the air (land first, or force it)")
+        _cancel_mission(ctx, ent, "disarm")
+        disarm(ctx, ent, row, "commanded" + (" (forced)" if msg.force else ""))
+        return ""
+
+    def _on_Terminate(self, ctx: StepContext, ent: int, row: int, msg: Terminate) -> str | Refusal:
+        _cancel_mission(ctx, ent, "flight termination")
+        disarm(ctx, ent, row, "flight termination: motors off")
+        return ""
+
+    # -- navigation modes --------------------------------------------------------------------
+    def _on_SetNavMode(self, ctx: StepContext, ent: int, row: int, msg: SetNavMode) -> str | Refusal:
+        try:
+            mode = NavState(msg.nav_state)
+        except ValueError:
+            return Refusal(CommandStatus.REJECTED_INVALID, "unknown_mode", f"unknown navigation mode {msg.nav_state!r}")
+        if mode == NavState.HOLD:
+            return self._to_hold(ctx, ent, row)
+        if mode == NavState.TAKEOFF:
+            return self._on_Takeoff(ctx, ent, row, Takeoff(msg.vehicle))
+        if mode == NavState.LAND:
+            return self._on_Land(ctx, ent, row, Land(msg.vehicle))
+        if mode == NavState.RTL:
+            return self._on_ReturnToLaunch(ctx, ent, row, ReturnToLaunch(msg.vehicle))
+        if mode == NavState.MISSION:
+            return _start_mission(ctx, ent, row, None)
+        return Refusal(CommandStatus.REJECTED_INVALID, "unsupported",
+                       f"navigation mode {mode.name} is not available through SetNavMode yet")
+
+    def _to_hold(self, ctx: StepContext, ent: int, row: int) -> str | Refusal:
+        _pause_mission(ctx, ent, "hold")
+        hold(ctx, ent, row)
+        return ""
+
+    def _on_Takeoff(self, ctx: StepContext, ent: int, row: int, msg: Takeoff) -> str | Refusal:
+        f = ctx.fleet
+        if f.flight_mode[row] == FlightMode.DISARMED:
+            return Refusal(CommandStatus.REJECTED_STATE, "not_armed", "Takeoff denied: arm the drone first")
+        if msg.alt_enu_m is not None and msg.alt_enu_m <= f.pos_enu_m[row, 2]:
+            if f.landed_state[row] != LandedState.ON_GROUND:
+                return Refusal(CommandStatus.REJECTED_STATE, "in_air",
+                               f"Takeoff denied: already above z = {msg.alt_enu_m:g} m")
+            return f"takeoff altitude z = {msg.alt_enu_m:g} m is not above the drone (z = {f.pos_enu_m[row, 2]:.2f} m)"
+        _pause_mission(ctx, ent, "takeoff")
+        start_takeoff(ctx, ent, row, msg.alt_enu_m, msg.yaw_rad)
+        return ""
+
+    def _on_Land(self, ctx: StepContext, ent: int, row: int, msg: Land) -> str | Refusal:
+        f = ctx.fleet
+        if f.flight_mode[row] == FlightMode.DISARMED:
+            return Refusal(CommandStatus.REJECTED_STATE, "not_armed", "Land denied: the drone is disarmed")
+        if f.landed_state[row] == LandedState.ON_GROUND and msg.xy_enu_m is None:
+            return Refusal(CommandStatus.REJECTED_STATE, "landed", "Land denied: already on the ground")
+        _pause_mission(ctx, ent, "land")
+        start_land(ctx, ent, row, None if msg.xy_enu_m is None else np.asarray(msg.xy_enu_m, dtype=float))
+        return ""
+
+    def _on_ReturnToLaunch(self, ctx: StepContext, ent: int, row: int, msg: ReturnToLaunch) -> str | Refusal:
+        f = ctx.fleet
+        if f.flight_mode[row] == FlightMode.DISARMED:
+            return Refusal(CommandStatus.REJECTED_STATE, "not_armed", "RTL denied: the drone is disarmed")
+        if f.landed_state[row] == LandedState.ON_GROUND:
+            return Refusal(CommandStatus.REJECTED_STATE, "landed", "RTL denied: the drone is on the ground")
+        _pause_mission(ctx, ent, "rtl")
+        start_rtl(ctx, ent, row)
+        return ""
+
+    # -- missions ----------------------------------------------------------------------------
+    def _on_StoreMission(self, ctx: StepContext, ent: int, row: int, msg: StoreMission) -> str | Refusal:
+        f = ctx.fleet
+        old = esper.try_component(ent, MissionRuntime)
+        was_running = old is not None and old.state == "running"
+        if old is not None:
+            esper.remove_component(ent, MissionRuntime)
+        if msg.mission is None:
+            f.mission_state[row] = MissionState.NONE
+            f.mission_step[row] = -1
+            ctx.services.note(ctx.sim_time_s, msg.vehicle, "mission cleared")
+        else:
+            esper.add_component(ent, MissionRuntime(spec=msg.mission, state="stored", stage_started_s=ctx.sim_time_s))
+            f.mission_state[row] = MissionState.STORED
+            f.mission_step[row] = -1
+            ctx.services.note(ctx.sim_time_s, msg.vehicle, f"mission {msg.mission.name} stored "
+                                                           f"({len(msg.mission.steps)} steps)")
+        if was_running:
+            f.charging[row] = False
+            hold(ctx, ent, row)
+        return ""
+
+    def _on_StartMission(self, ctx: StepContext, ent: int, row: int, msg: StartMission) -> str | Refusal:
+        return _start_mission(ctx, ent, row, msg.first_step)
+
+    def _on_SetMissionCurrent(self, ctx: StepContext, ent: int, row: int, msg: SetMissionCurrent) -> str | Refusal:
+        rt = esper.try_component(ent, MissionRuntime)
+        if rt is None:
+            return Refusal(CommandStatus.REJECTED_STATE, "no_mission", "no mission to set the current step of")
+        if not 0 <= msg.step < len(rt.spec.steps):
+            return f"mission step {msg.step} does not exist (the mission has {len(rt.spec.steps)} steps)"
+        rt.step_index = msg.step
+        rt.stage, rt.stage_started_s, rt.scratch = "wait_before", ctx.sim_time_s, {}
+        if rt.state == "completed":
+            rt.state = "stored"
+            ctx.fleet.mission_state[row] = MissionState.STORED
+        ctx.services.note(ctx.sim_time_s, msg.vehicle, f"mission current step set to {msg.step}")
+        return ""
+
+    def _on_PauseMission(self, ctx: StepContext, ent: int, row: int, msg: PauseMission) -> str | Refusal:
+        rt = esper.try_component(ent, MissionRuntime)
+        if rt is None:
+            return Refusal(CommandStatus.REJECTED_STATE, "no_mission", "no mission to pause or continue")
+        if msg.resume:
+            if rt.state != "paused":
+                return Refusal(CommandStatus.REJECTED_STATE, "not_paused", f"the mission is {rt.state}, not paused")
+            return _start_mission(ctx, ent, row, None)
+        if rt.state != "running":
+            return Refusal(CommandStatus.REJECTED_STATE, "not_running", f"the mission is {rt.state}, not running")
+        return self._to_hold(ctx, ent, row)
+
+    # -- parameters, home, speed, rally, gripper -----------------------------------------------
+    def _on_SetParam(self, ctx: StepContext, ent: int, row: int, msg: SetParam) -> str | Refusal:
+        _, params = ensure_nav(ent)
+        error = params.set(msg.name, msg.value)
+        if error:
+            return Refusal(CommandStatus.REJECTED_INVALID, "unknown_param" if msg.name not in params.values
+                           else "out_of_range", error)
+        ctx.services.note(ctx.sim_time_s, msg.vehicle, f"parameter {msg.name} set to {params[msg.name]:g}")
+        return ""
+
+    def _on_SetHome(self, ctx: StepContext, ent: int, row: int, msg: SetHome) -> str | Refusal:
+        f = ctx.fleet
+        f.home_enu_m[row] = f.pos_enu_m[row] if msg.pos_enu_m is None else msg.pos_enu_m
+        f.home_set[row] = True
+        x, y, z = f.home_enu_m[row]
+        ctx.services.note(ctx.sim_time_s, msg.vehicle, f"home set to ({x:.1f}, {y:.1f}, {z:.1f})")
+        return ""
+
+    def _on_ChangeSpeed(self, ctx: StepContext, ent: int, row: int, msg: ChangeSpeed) -> str | Refusal:
+        f = ctx.fleet
+        if msg.which not in _SPEED_COLUMN:
+            return f"speed kind must be one of {sorted(_SPEED_COLUMN)}, got {msg.which!r}"
+        nav, _ = ensure_nav(ent)
+        nav.speeds[msg.which] = float(msg.speed_m_s)
+        route = f.route[row]
+        if route is not None and f.flight_mode[row] == FlightMode.AUTO:
+            seg = int(f.route_segment[row])
+            pts = np.vstack([f.pos_enu_m[row], route.points_enu_m[seg + 1:]])
+            sps = np.vstack([route.speeds_m_s[seg + 1:seg + 2], route.speeds_m_s[seg + 1:]]).copy()
+            sps[:, _SPEED_COLUMN[msg.which]] = msg.speed_m_s
+            if pts.shape[0] >= 2:
+                set_route(f, row, Route(pts, sps, route.yaw_sp_rad))
+        ctx.services.note(ctx.sim_time_s, msg.vehicle, f"{msg.which} speed set to {msg.speed_m_s:g} m/s")
+        return ""
+
+    def _on_SetRallyPoints(self, ctx: StepContext, ent: int, row: int, msg: SetRallyPoints) -> str | Refusal:
+        nav, _ = ensure_nav(ent)
+        nav.rally_enu_m = tuple(tuple(float(v) for v in p) for p in msg.points_enu_m)
+        return ""
+
+    def _on_Gripper(self, ctx: StepContext, ent: int, row: int, msg: Gripper) -> str | Refusal:
+        f = ctx.fleet
+        if msg.grab:
+            if f.payload_entity[row] >= 0:
+                return Refusal(CommandStatus.REJECTED_STATE, "holding", "the gripper already holds a package")
+            f.payload_package[row] = None
+            f.payload_request[row] = PayloadRequest.ATTACH
+        else:
+            if f.payload_entity[row] < 0:
+                return Refusal(CommandStatus.REJECTED_STATE, "empty", "the gripper holds nothing")
+            f.payload_request[row] = PayloadRequest.RELEASE
+        f.payload_result[row] = PayloadResult.NONE
+        return ""
+
+
+_SPEED_COLUMN = {"ground": 0, "climb": 1, "descent": 2}
+
+
+def arming_refusal(f, ent: int, row: int) -> Refusal | None:
+    """Why drone ``row`` may not arm now (PX4's pre-arm checks that apply here), or None."""
+    energy = esper.try_component(ent, EnergyModel)
+    if energy is not None and (f.low_battery[row] or f.soc_frac[row] < energy.low_battery_land_frac):
+        return Refusal(CommandStatus.REJECTED_STATE, "low_battery",
+                       f"Arming denied: battery at {100 * f.soc_frac[row]:.0f} % (below "
+                       f"{100 * energy.low_battery_land_frac:.0f} %)")
+    if not f.motors_enabled[row]:
+        bay = esper.try_component(ent, PayloadBay)
+        if bay is not None and f.payload_kg[row] > bay.max_payload_kg:
+            return Refusal(CommandStatus.REJECTED_STATE, "overweight",
+                           f"Arming denied: payload {f.payload_kg[row]:.2f} kg exceeds {bay.max_payload_kg:g} kg")
+        return Refusal(CommandStatus.REJECTED_STATE, "motors_disabled", "Arming denied: motors disabled")
+    if f.landed_state[row] not in (LandedState.ON_GROUND, LandedState.UNDEFINED):
+        return Refusal(CommandStatus.REJECTED_STATE, "in_air", "Arming denied: not on the ground (force it to arm in the air)")
+    return None
+
+
+def _end_nav_mode(ent: int) -> None:
+    nav = esper.try_component(ent, NavRuntime)
+    if nav is not None:
+        nav.mode, nav.phase, nav.goal_enu_m = "", "", None
+
+
+def _pause_mission(ctx: StepContext, ent: int, why: str) -> None:
+    """A mode switch away from MISSION pauses the mission (MISSION mode or PauseMission resumes it)."""
+    rt = esper.try_component(ent, MissionRuntime)
+    if rt is not None and rt.state == "running":
+        rt.state, rt.reason = "paused", why
+        row = ctx.fleet.row_of(ent)
+        ctx.fleet.charging[row] = False
+        ctx.fleet.mission_state[row] = MissionState.PAUSED
+        ctx.services.note(ctx.sim_time_s, esper.component_for_entity(ent, Identity).name,
+                          f"mission {rt.spec.name} paused at step {rt.step_index} by {why}")
+
+
+def _start_mission(ctx: StepContext, ent: int, row: int, first_step: int | None) -> str | Refusal:
+    """Run the drone's mission from ``first_step`` (None: resume a paused one at its current step, restart
+    a finished one). On the ground it takes off first when the step flies somewhere (PX4's implicit takeoff)."""
+    f = ctx.fleet
+    rt = esper.try_component(ent, MissionRuntime)
+    if rt is None:
+        return Refusal(CommandStatus.REJECTED_STATE, "no_mission", "Mission denied: no mission uploaded")
+    n = len(rt.spec.steps)
+    if first_step is None:
+        first_step = rt.step_index if rt.state in ("paused", "stored", "running") else 0
+    if not 0 <= first_step < n:
+        return f"mission step {first_step} does not exist (the mission has {n} steps)"
+    _end_nav_mode(ent)
+    rt.step_index, rt.state, rt.reason = first_step, "running", ""
+    rt.stage, rt.stage_started_s, rt.scratch = "wait_before", ctx.sim_time_s, {}
+    if f.landed_state[row] in (LandedState.ON_GROUND, LandedState.UNDEFINED) and \
+            rt.spec.steps[first_step].type in ("cruise", "pickup", "return"):
+        rt.scratch["takeoff_first"] = True
+    f.nav_state[row] = NavState.MISSION
+    f.mission_state[row] = MissionState.RUNNING
+    name = esper.component_for_entity(ent, Identity).name
+    ctx.services.note(ctx.sim_time_s, name, f"mission {rt.spec.name} started at step {first_step}")
+    return ""
 
 
 def _hold_position(f, row: int) -> None:
@@ -138,8 +400,9 @@ def _hold_position(f, row: int) -> None:
 
 def _cancel_mission(ctx: StepContext, ent: int, why: str) -> None:
     rt = esper.try_component(ent, MissionRuntime)
-    if rt is not None and rt.state == "running":
+    if rt is not None and rt.state in ("running", "paused"):
         rt.state, rt.reason = "cancelled", why
         ctx.fleet.charging[ctx.fleet.row_of(ent)] = False
+        ctx.fleet.mission_state[ctx.fleet.row_of(ent)] = MissionState.CANCELLED
         name = esper.component_for_entity(ent, Identity).name
         ctx.services.note(ctx.sim_time_s, name, f"mission {rt.spec.name} cancelled by {why}")

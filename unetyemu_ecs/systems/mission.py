@@ -18,9 +18,18 @@ from ..components.body import FleetSlot, Identity, RigidBody
 from ..components.flight import GuidanceLimits
 from ..components.mission import MissionRuntime
 from ..frames import yaw_rad_from_quat_xyzw
+from ..navigation.params import FlightParams
+from ..navigation.state import NavRuntime
 from ..phases import Phase
 from ..world import StepContext
-from .flight_state import FlightMode, PayloadRequest, PayloadResult, Route, set_route
+from .flight_state import (FlightMode, LandedState, MissionState, NavState, PayloadRequest, PayloadResult, Route,
+                           set_route)
+from .navigator import start_rtl
+
+# MissionRuntime.state -> the number transports read (mission_state)
+MISSION_STATES = {"stored": MissionState.STORED, "running": MissionState.RUNNING, "paused": MissionState.PAUSED,
+                  "completed": MissionState.COMPLETED, "failed": MissionState.FAILED,
+                  "cancelled": MissionState.CANCELLED}
 
 LANDED_SPEED_M_S = 0.25        # touching something and slower than this ...
 LANDED_HOLD_S = 0.5            # ... for this long counts as landed
@@ -46,20 +55,29 @@ class MissionSystem(esper.Processor):
     def process(self, ctx: StepContext) -> None:
         f = ctx.fleet
         for ent, (ident, slot, rt) in esper.get_components(Identity, FleetSlot, MissionRuntime):
+            row = slot.row
+            f.mission_state[row] = MISSION_STATES[rt.state]
             if rt.state != "running":
                 continue
-            row = slot.row
+            if f.nav_state[row] != NavState.MISSION and f.flight_mode[row] != FlightMode.DISARMED:
+                f.nav_state[row] = NavState.MISSION
             if f.low_battery[row] and rt.spec.steps[rt.step_index].type not in ("land", "recharge"):
                 self._fail(ctx, ident.name, row, rt, "low_battery")
                 self._begin_emergency_landing(ctx, ent, row)
                 continue
             self._advance(ctx, ent, ident.name, row, rt)
             f.mission_step[row] = rt.step_index if rt.state == "running" else -1
+            f.mission_state[row] = MISSION_STATES[rt.state]
+            if rt.state == "completed" and f.nav_state[row] == NavState.MISSION:
+                f.nav_state[row] = NavState.HOLD
 
     # -- state machine -----------------------------------------------------------------------
     def _advance(self, ctx: StepContext, ent: int, name: str, row: int, rt: MissionRuntime) -> None:
         t = ctx.sim_time_s
         step = rt.spec.steps[rt.step_index]
+        if rt.stage == "wait_before" and rt.scratch.get("takeoff_first"):
+            self._takeoff_first(ctx, ent, name, row, rt, step)
+            return
         if rt.stage == "wait_before":
             if t - rt.stage_started_s >= step.wait_before - 1e-9:
                 rt.stage, rt.stage_started_s, rt.scratch = "active", t, {}
@@ -89,10 +107,37 @@ class MissionSystem(esper.Processor):
                 return
             rt.stage, rt.stage_started_s, rt.scratch = "wait_before", t, {}
 
+    def _takeoff_first(self, ctx: StepContext, ent: int, name: str, row: int, rt: MissionRuntime, step: Any) -> None:
+        """PX4's implicit takeoff: a mission started on the ground whose step flies somewhere first climbs
+        straight up to the higher of home + MIS_TAKEOFF_ALT and the step's first waypoint, at MPC_TKO_SPEED."""
+        f = ctx.fleet
+        s = rt.scratch
+        if "takeoff_goal" not in s:
+            params = esper.try_component(ent, FlightParams) or FlightParams()
+            pos = f.pos_enu_m[row].copy()
+            base = f.home_enu_m[row, 2] if f.home_set[row] else pos[2]
+            z = base + params["MIS_TAKEOFF_ALT"]
+            if step.waypoints:
+                z = max(z, step.waypoints[0].z)
+            goal = np.array([pos[0], pos[1], z])
+            lim = esper.component_for_entity(ent, GuidanceLimits)
+            sp = (rt.spec.cruise_speed, min(params["MPC_TKO_SPEED"], lim.lim_climb_m_s), lim.descent_speed_m_s)
+            _arm(f, row)
+            set_route(f, row, _route([pos, goal], [sp, sp], np.nan))
+            s["takeoff_goal"] = goal
+            ctx.services.note(ctx.sim_time_s, name, f"mission takeoff to z = {z:.1f} m before step {rt.step_index}")
+            return
+        if f.arrived[row] and abs(f.pos_enu_m[row, 2] - s["takeoff_goal"][2]) < 0.3:
+            rt.scratch = {}
+            rt.stage_started_s = ctx.sim_time_s
+
     def _fail(self, ctx: StepContext, name: str, row: int, rt: MissionRuntime, reason: str) -> None:
         rt.state, rt.reason = "failed", reason
         ctx.fleet.charging[row] = False
         ctx.fleet.mission_step[row] = -1
+        ctx.fleet.mission_state[row] = MissionState.FAILED
+        if ctx.fleet.nav_state[row] == NavState.MISSION:
+            ctx.fleet.nav_state[row] = NavState.LAND if reason == "low_battery" else NavState.HOLD
         ctx.services.note(ctx.sim_time_s, name, f"mission {rt.spec.name} failed at step {rt.step_index}: {reason}")
         f = ctx.fleet
         if reason != "overweight" and f.flight_mode[row] == FlightMode.AUTO and f.motors_enabled[row]:
@@ -148,6 +193,11 @@ class MissionSystem(esper.Processor):
         elif step.type == "idle":
             if f.flight_mode[row] != FlightMode.DISARMED and f.route[row] is None:
                 _hold_here(f, row)     # otherwise keep converging on the last target
+        elif step.type == "return":
+            if f.landed_state[row] == LandedState.ON_GROUND:
+                s["landed"] = True     # already down: nothing to return from
+            else:
+                start_rtl(ctx, ent, row, nav_state=NavState.MISSION)
         return ""
 
     def _begin_landing(self, ctx: StepContext, ent: int, row: int, rt: MissionRuntime, step: Any,
@@ -277,6 +327,15 @@ class MissionSystem(esper.Processor):
             elapsed = ctx.sim_time_s - s.setdefault("charge_start_s", ctx.sim_time_s)
             if f.soc_frac[row] >= step.target_soc_frac - 1e-9 or (step.duration_s is not None and elapsed >= step.duration_s):
                 f.charging[row] = False
+                return "done"
+            return None
+        if step.type == "return":
+            nav = esper.try_component(ent, NavRuntime)
+            if s.get("landed") or (nav is not None and nav.mode == "rtl" and nav.phase == "landed"):
+                f.flight_mode[row] = FlightMode.DISARMED
+                set_route(f, row, None)
+                if nav is not None:
+                    nav.mode, nav.phase = "", ""
                 return "done"
             return None
         if step.type == "idle":

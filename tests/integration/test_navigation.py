@@ -1,0 +1,280 @@
+"""PX4-style navigation on the flight stack, flown in PyBullet: land detector, home, arming checks,
+auto-disarm, TAKEOFF, LAND, RTL, HOLD, stored missions, parameters (docs/architecture.md §7).
+
+Every claim is read from the physics (positions, contact) and from the command results that MAVLink
+and ROS 2 report from; nothing is mocked. Worlds are flat and small; flights are short.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from unetyemu_ecs import Simulation, load_world_text
+from unetyemu_ecs.transport.api import CommandStatus
+
+from .test_flight import drone, flat_world
+
+
+def make_sim(components: str = "", pose: str = "{position_m: [0.0, 0.0, 0.3]}") -> Simulation:
+    sim = Simulation(load_world_text(flat_world(drone("d1", pose=pose, components=components))))
+    sim.run(duration=1.0)           # settle on the ground
+    return sim
+
+
+def result(sim: Simulation, command_id: int):
+    res = sim.nav_result(command_id)
+    assert res is not None, f"command {command_id} has no result"
+    return res
+
+
+def fly_up(sim: Simulation, alt_m: float) -> None:
+    assert result_after(sim, sim.set_armed("d1")).status == CommandStatus.ACCEPTED
+    assert result_after(sim, sim.takeoff("d1", alt_m)).status == CommandStatus.ACCEPTED
+    run_until(sim, lambda: sim.nav_state("d1") == "HOLD", 30.0)
+
+
+def result_after(sim: Simulation, command_id: int):
+    sim.step()
+    return result(sim, command_id)
+
+
+def run_until(sim: Simulation, done, limit_s: float, every_s: float = 0.05) -> None:
+    end = sim.sim_time_s + limit_s
+    while not done():
+        assert sim.sim_time_s < end, f"not done within {limit_s} s of sim time"
+        sim.run(duration=every_s)
+
+
+# -- land detector, home, nav_state of the existing commands ---------------------------------
+def test_a_drone_resting_on_the_ground_is_on_ground_holds_and_has_its_home_there():
+    # GIVEN a drone that settled on flat ground
+    sim = make_sim()
+    # THEN the land detector says ON_GROUND, the mode is HOLD (disarmed) and home is where it rests
+    assert sim.landed_state("d1") == "ON_GROUND"
+    assert sim.nav_state("d1") == "HOLD"
+    assert not sim.is_armed("d1")
+    home = sim.home_enu_m("d1")
+    assert home is not None and np.linalg.norm(home[:2] - sim.position_enu_m("d1")[:2]) < 0.05
+
+
+def test_a_drone_dropped_from_height_is_in_air_until_it_rests_on_the_ground():
+    # GIVEN a disarmed drone released 3 m above the ground
+    sim = Simulation(load_world_text(flat_world(drone("d1", pose="{position_m: [0.0, 0.0, 3.0]}"))))
+    sim.run(duration=0.2)
+    # THEN it is IN_AIR while falling, ON_GROUND once it rests
+    assert sim.landed_state("d1") == "IN_AIR"
+    run_until(sim, lambda: sim.landed_state("d1") == "ON_GROUND", 5.0)
+    assert sim.position_enu_m("d1")[2] < 0.5
+
+
+def test_nav_state_follows_target_velocity_stick_and_mission_commands():
+    sim = make_sim()
+    sim.set_target("d1", 0, 0, 3)
+    sim.step()
+    assert sim.nav_state("d1") == "GOTO"
+    sim.cmd_vel("d1", 0.5, 0.0)
+    sim.step()
+    assert sim.nav_state("d1") == "OFFBOARD"
+    sim.teleop("d1", 0.1, 0, 0, 0)
+    sim.step()
+    assert sim.nav_state("d1") == "MANUAL"
+    sim.load_mission("d1", '[{"type": "idle", "duration_s": 30}]')
+    sim.step(2)
+    assert sim.nav_state("d1") == "MISSION" and sim.mission_state("d1") == "RUNNING"
+    assert result_after(sim, sim.hold("d1")).status == CommandStatus.ACCEPTED
+    assert sim.nav_state("d1") == "HOLD" and sim.mission_state("d1") == "PAUSED"
+
+
+# -- arming ------------------------------------------------------------------------------------
+def test_arming_with_5_percent_battery_is_refused_with_reason_low_battery():
+    # GIVEN a drone whose battery is at 5 % (below its 10 % low-battery level)
+    sim = make_sim(components="      energy: {initial_soc_frac: 0.05}\n")
+    # WHEN it is asked to arm
+    res = result_after(sim, sim.set_armed("d1"))
+    # THEN the command is refused for the state, with the machine reason, and the motors stay off
+    assert res.status == CommandStatus.REJECTED_STATE and res.reason == "low_battery"
+    assert "battery" in res.text
+    assert not sim.is_armed("d1")
+    # AND forcing it arms anyway (PX4's 21196)
+    assert result_after(sim, sim.set_armed("d1", force=True)).status == CommandStatus.ACCEPTED
+    assert sim.is_armed("d1")
+
+
+def test_disarming_in_the_air_is_refused_unless_forced():
+    sim = make_sim()
+    fly_up(sim, 3.0)
+    res = result_after(sim, sim.set_armed("d1", False))
+    assert res.status == CommandStatus.REJECTED_STATE and res.reason == "in_air"
+    assert sim.is_armed("d1")
+    assert result_after(sim, sim.set_armed("d1", False, force=True)).status == CommandStatus.ACCEPTED
+    assert not sim.is_armed("d1")
+
+
+def test_arming_sets_home_and_a_drone_that_never_takes_off_disarms_after_com_disarm_prflt():
+    # GIVEN COM_DISARM_PRFLT = 1.5 s
+    sim = make_sim()
+    assert result_after(sim, sim.set_param("d1", "COM_DISARM_PRFLT", 1.5)).status == CommandStatus.ACCEPTED
+    assert sim.get_param("d1", "COM_DISARM_PRFLT") == 1.5
+    # WHEN it is armed and left on the ground
+    armed_at = sim.sim_time_s
+    assert result_after(sim, sim.set_armed("d1")).status == CommandStatus.ACCEPTED
+    run_until(sim, lambda: not sim.is_armed("d1"), 5.0, every_s=1 / 240)
+    # THEN it disarms itself 1.5 s after arming
+    assert sim.sim_time_s - armed_at == pytest.approx(1.5, abs=0.05)
+    assert any("COM_DISARM_PRFLT" in text for _, _, text in sim.events)
+
+
+def test_takeoff_and_rtl_are_refused_with_state_reasons():
+    sim = make_sim()
+    res = result_after(sim, sim.takeoff("d1"))
+    assert (res.status, res.reason) == (CommandStatus.REJECTED_STATE, "not_armed")
+    sim.set_armed("d1")
+    res = result_after(sim, sim.return_to_launch("d1"))
+    assert (res.status, res.reason) == (CommandStatus.REJECTED_STATE, "landed")
+    res = result_after(sim, sim.start_mission("d1"))
+    assert (res.status, res.reason) == (CommandStatus.REJECTED_STATE, "no_mission")
+
+
+def test_bad_values_are_refused_before_anything_is_queued():
+    sim = make_sim()
+    for call in (lambda: sim.takeoff("d1", float("nan")), lambda: sim.takeoff("d1", -3.0),
+                 lambda: sim.set_param("d1", "MIS_TAKEOFF_ALT", 1e6), lambda: sim.set_param("d1", "NOPE", 1.0),
+                 lambda: sim.set_nav_mode("d1", "CRUISE"), lambda: sim.change_speed("d1", 0.0),
+                 lambda: sim.land("d1", (1e9, 0.0)), lambda: sim.set_armed("d1", "yes")):
+        with pytest.raises(ValueError):
+            call()
+    assert sim.services.results == [] or all(r.kind != "takeoff" for r in sim.services.results)
+
+
+# -- TAKEOFF, LAND, RTL ------------------------------------------------------------------------
+def test_takeoff_without_an_altitude_hovers_at_mis_takeoff_alt():
+    # GIVEN an armed drone on the ground (MIS_TAKEOFF_ALT 2.5 m, PX4's default)
+    sim = make_sim()
+    home_z = sim.home_enu_m("d1")[2]
+    sim.set_armed("d1")
+    # WHEN it is told to take off without an altitude
+    assert result_after(sim, sim.takeoff("d1")).status == CommandStatus.ACCEPTED
+    states = set()
+    for _ in range(60):
+        sim.run(duration=0.1)
+        states.add(sim.landed_state("d1"))
+    # THEN it reported TAKEOFF while climbing, then hovers at home + 2.5 m in HOLD
+    assert "TAKEOFF" in states
+    assert sim.nav_state("d1") == "HOLD"
+    assert sim.landed_state("d1") == "IN_AIR"
+    assert sim.position_enu_m("d1")[2] == pytest.approx(home_z + 2.5, abs=0.3)
+    assert np.linalg.norm(sim.velocity_enu_m_s("d1")) < 0.3
+
+
+def test_land_from_10_m_touches_down_reports_on_ground_and_disarms_2_s_later():
+    # GIVEN a drone hovering 10 m up
+    sim = make_sim()
+    fly_up(sim, 10.0)
+    assert sim.position_enu_m("d1")[2] > 9.5
+    # WHEN it is told to land
+    assert result_after(sim, sim.land("d1")).status == CommandStatus.ACCEPTED
+    assert sim.nav_state("d1") == "LAND" and sim.landed_state("d1") == "LANDING"
+    vz = []
+    while sim.landed_state("d1") != "ON_GROUND":
+        assert sim.sim_time_s < 60
+        sim.step()
+        vz.append((sim.position_enu_m("d1")[2], sim.velocity_enu_m_s("d1")[2]))
+    touchdown = sim.sim_time_s
+    # THEN it descended at MPC_Z_V_AUTO_DN (1.5 m/s) high up and MPC_LAND_SPEED (0.7 m/s) near the ground
+    # (the velocity loop runs ~0.2 m/s past a 1.5 m/s descent limit)
+    high = [-v for z, v in vz if 7.0 < z < 8.5]
+    low = [-v for z, v in vz if 1.0 < z < 3.0]
+    assert np.median(high) == pytest.approx(1.5, rel=0.2)
+    assert np.median(low) == pytest.approx(0.7, rel=0.15)
+    # AND it touched down where it was, and disarms COM_DISARM_LAND = 2 s after the land detector said so
+    assert np.linalg.norm(sim.position_enu_m("d1")[:2]) < 0.5
+    assert sim.is_armed("d1")
+    run_until(sim, lambda: not sim.is_armed("d1"), 5.0, every_s=1 / 240)
+    assert sim.sim_time_s - touchdown == pytest.approx(2.0, abs=0.05)
+    assert sim.nav_state("d1") == "HOLD" and sim.landed_state("d1") == "ON_GROUND"
+
+
+def test_rtl_climbs_to_rtl_return_alt_and_lands_within_1_m_of_home():
+    # GIVEN RTL_RETURN_ALT 8 m, RTL_DESCEND_ALT 4 m and a drone 3 m up, 25 m from home
+    sim = make_sim()
+    home = sim.home_enu_m("d1")
+    sim.set_param("d1", "RTL_RETURN_ALT", 8.0)
+    sim.set_param("d1", "RTL_DESCEND_ALT", 4.0)
+    fly_up(sim, 3.0)
+    sim.set_target("d1", 25.0, 5.0, 3.0)
+    run_until(sim, lambda: np.linalg.norm(sim.position_enu_m("d1") - (25.0, 5.0, 3.0)) < 0.5, 20.0)
+    # WHEN it is told to return
+    assert result_after(sim, sim.return_to_launch("d1")).status == CommandStatus.ACCEPTED
+    assert sim.nav_state("d1") == "RTL"
+    track = []
+    while sim.is_armed("d1"):
+        assert sim.sim_time_s < 120
+        sim.run(duration=0.05)
+        track.append(sim.position_enu_m("d1").copy())
+    track = np.array(track)
+    # THEN it climbed to home + 8 m before flying back (not higher), and the return leg flew at that height
+    assert track[:, 2].max() == pytest.approx(home[2] + 8.0, abs=0.5)
+    far = np.hypot(track[:, 0] - home[0], track[:, 1] - home[1]) > 5.0
+    assert track[far & (np.arange(len(track)) > np.argmax(track[:, 2])), 2].min() > home[2] + 6.5
+    # AND it landed within 1 m of home and disarmed
+    assert np.linalg.norm(sim.position_enu_m("d1")[:2] - home[:2]) < 1.0
+    assert sim.landed_state("d1") == "ON_GROUND" and sim.nav_state("d1") == "HOLD"
+
+
+def test_rtl_goes_to_the_closest_rally_point():
+    sim = make_sim()
+    sim.set_param("d1", "RTL_RETURN_ALT", 4.0)
+    sim.set_param("d1", "RTL_DESCEND_ALT", 4.0)
+    sim.set_rally_points("d1", [(20.0, 0.0, 0.0), (-80.0, 0.0, 0.0)])
+    fly_up(sim, 4.0)
+    sim.set_target("d1", 15.0, 0.0, 4.0)
+    run_until(sim, lambda: sim.position_enu_m("d1")[0] > 14.5, 20.0)
+    sim.return_to_launch("d1")
+    run_until(sim, lambda: sim.landed_state("d1") == "ON_GROUND", 40.0)
+    assert np.linalg.norm(sim.position_enu_m("d1")[:2] - (20.0, 0.0)) < 1.0
+
+
+# -- missions ----------------------------------------------------------------------------------
+MISSION = """{"name": "m", "steps": [
+  {"type": "cruise", "waypoints": [{"x": 6, "y": 0, "z": 3}]},
+  {"type": "return"}]}"""
+
+
+def test_a_stored_mission_waits_then_takes_off_first_flies_and_returns_home():
+    # GIVEN a mission stored on a drone on the ground (RTL heights small to keep it short)
+    sim = make_sim()
+    home = sim.home_enu_m("d1")
+    sim.set_param("d1", "RTL_RETURN_ALT", 4.0)
+    sim.set_param("d1", "RTL_DESCEND_ALT", 3.0)
+    assert result_after(sim, sim.store_mission("d1", MISSION)).status == CommandStatus.ACCEPTED
+    sim.run(duration=1.0)
+    # THEN it is stored, not flown
+    assert sim.mission_state("d1") == "STORED" and sim.landed_state("d1") == "ON_GROUND"
+    # WHEN it is started
+    sim.set_armed("d1")
+    assert result_after(sim, sim.start_mission("d1")).status == CommandStatus.ACCEPTED
+    assert sim.nav_state("d1") == "MISSION"
+    sim.run(duration=1.5)
+    # THEN it first climbs straight up (PX4's implicit takeoff) ...
+    assert np.hypot(*sim.position_enu_m("d1")[:2]) < 0.3 and sim.position_enu_m("d1")[2] > 1.0
+    # ... flies the waypoint, returns and lands at home, and the mission completes
+    run_until(sim, lambda: sim.mission_state("d1") == "COMPLETED", 60.0, every_s=0.1)
+    assert np.linalg.norm(sim.position_enu_m("d1")[:2] - home[:2]) < 1.0
+    assert not sim.is_armed("d1") and sim.nav_state("d1") == "HOLD"
+    assert any("mission step 0 (cruise) done" in text for _, _, text in sim.events)
+
+
+def test_pause_holds_and_resume_continues_the_mission():
+    sim = make_sim()
+    sim.load_mission("d1", '[{"type": "takeoff", "altitude_m": 3}, {"type": "cruise", "waypoints": [{"x": 30, "y": 0, "z": 3}]}]')
+    run_until(sim, lambda: sim.position_enu_m("d1")[0] > 5.0, 20.0)
+    assert result_after(sim, sim.pause_mission("d1")).status == CommandStatus.ACCEPTED
+    assert sim.mission_state("d1") == "PAUSED" and sim.nav_state("d1") == "HOLD"
+    sim.run(duration=4.0)
+    x = sim.position_enu_m("d1")[0]
+    sim.run(duration=1.0)
+    assert abs(sim.position_enu_m("d1")[0] - x) < 0.2
+    assert result_after(sim, sim.pause_mission("d1", resume=True)).status == CommandStatus.ACCEPTED
+    run_until(sim, lambda: sim.mission_state("d1") == "COMPLETED", 30.0)
+    assert sim.position_enu_m("d1")[0] == pytest.approx(30.0, abs=0.5)

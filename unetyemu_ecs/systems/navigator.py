@@ -1,0 +1,363 @@
+"""PX4-style navigation on the flight stack: land detector, home, TAKEOFF / LAND / RTL, auto-disarm
+(docs/architecture.md §7).
+
+Two systems:
+
+- :class:`LandDetectorSystem` (STATE) writes ``landed_state`` from the physics, as PX4's multicopter
+  land detector does: ON_GROUND once the drone (or the package it carries) touches something and moves
+  slower than LNDMC_Z_VEL_MAX vertically, LNDMC_XY_VEL_MAX horizontally and turns slower than
+  LNDMC_ROT_MAX, held for :data:`LAND_TRIGGER_S`; otherwise IN_AIR, reported as TAKEOFF or LANDING while
+  the navigator (or the mission step) is taking off or landing.
+- :class:`NavigatorSystem` (MISSION, after the mission) sets home at the first position fix, advances
+  TAKEOFF, LAND and RTL, and disarms a drone COM_DISARM_LAND seconds after it landed, or
+  COM_DISARM_PRFLT seconds after arming when it never took off (not while a mission runs: a mission
+  arms and disarms the drone itself).
+
+The modes are started by commands (:mod:`.flight_commands`) and by the mission's ``return`` step through
+:func:`start_takeoff`, :func:`start_land` and :func:`start_rtl`; each turns the mode into a route flown
+by the AUTO path, with PX4's parameters (:mod:`unetyemu_ecs.navigation.params`) for speeds and heights.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import esper
+import numpy as np
+
+from ..components.body import FleetSlot, Identity, RigidBody
+from ..components.flight import GuidanceLimits
+from ..components.mission import MissionRuntime
+from ..navigation.params import FlightParams
+from ..navigation.state import NavRuntime
+from ..phases import Phase
+from ..world import StepContext
+from .flight_state import FlightMode, LandedState, MissionState, NavState, Route, set_route
+
+LAND_TRIGGER_S = 0.3        # the land-detector conditions must hold this long (PX4 LandDetector trigger time)
+LAND_BELOW_M = 0.3          # a landing aims this far below the resting height, so touchdown happens
+TAKEOFF_DONE_M = 0.3        # TAKEOFF is done within this height of its altitude
+GOAL_DONE_M = 1.0           # an RTL leg is done within this distance of its end
+BRAKE_ACC_M_S2 = 3.0        # HOLD stops where braking at this deceleration ends (PX4 MPC_ACC_HOR default)
+
+
+# -- components ------------------------------------------------------------------------------
+def ensure_nav(ent: int) -> tuple[NavRuntime, FlightParams]:
+    """The drone's navigator state and flight parameters (created with the defaults on first use)."""
+    nav = esper.try_component(ent, NavRuntime)
+    if nav is None:
+        nav = NavRuntime()
+        esper.add_component(ent, nav)
+    params = esper.try_component(ent, FlightParams)
+    if params is None:
+        params = FlightParams()
+        esper.add_component(ent, params)
+    return nav, params
+
+
+def ensure_all_drones() -> None:
+    """Give every drone (every entity with GuidanceLimits) its NavRuntime and FlightParams."""
+    missing = [ent for ent, _ in esper.get_components(GuidanceLimits)
+               if not (esper.has_component(ent, NavRuntime) and esper.has_component(ent, FlightParams))]
+    for ent in missing:
+        ensure_nav(ent)
+
+
+# -- mode starts (called by the command system and the mission) -------------------------------
+def _speeds(ent: int, params: FlightParams, nav: NavRuntime, *, climb: float | None = None,
+            descent: float | None = None) -> tuple[float, float, float]:
+    """(cruise, climb, descent) of an automatic leg: MPC_XY_CRUISE, MPC_Z_V_AUTO_UP/DN (or the given
+    ones), ChangeSpeed overrides, within the drone's guidance limits."""
+    lim = esper.component_for_entity(ent, GuidanceLimits)
+    cruise = nav.speeds.get("ground", params["MPC_XY_CRUISE"])
+    up = climb if climb is not None else nav.speeds.get("climb", params["MPC_Z_V_AUTO_UP"])
+    down = descent if descent is not None else nav.speeds.get("descent", params["MPC_Z_V_AUTO_DN"])
+    return float(cruise), float(min(up, lim.lim_climb_m_s)), float(min(down, lim.lim_descent_m_s))
+
+
+def _route(points: list[np.ndarray], speeds: list[tuple[float, float, float]], yaw: float = math.nan) -> Route:
+    return Route(np.array(points, dtype=float), np.array(speeds, dtype=float), float(yaw))
+
+
+def _set_mode(nav: NavRuntime, mode: str, phase: str, t: float, goal: np.ndarray | None) -> None:
+    nav.mode, nav.phase, nav.phase_started_s, nav.goal_enu_m = mode, phase, t, goal
+
+
+def hold(ctx: StepContext, ent: int, row: int) -> None:
+    """HOLD: brake and hover where the drone is (stay put on the ground); ends any navigator mode."""
+    f = ctx.fleet
+    nav, _ = ensure_nav(ent)
+    _set_mode(nav, "", "", ctx.sim_time_s, None)
+    f.nav_state[row] = NavState.HOLD
+    if f.flight_mode[row] == FlightMode.DISARMED:
+        return
+    f.flight_mode[row] = FlightMode.AUTO
+    pos = f.pos_enu_m[row].copy()
+    vel = f.vel_enu_m_s[row]
+    stop = pos + np.array([*(vel[:2] * np.hypot(vel[0], vel[1]) / (2.0 * BRAKE_ACC_M_S2)), 0.0])
+    sp = (1.0, 1.0, 1.0)
+    set_route(f, row, _route([pos, stop], [sp, sp]))
+
+
+def start_takeoff(ctx: StepContext, ent: int, row: int, alt_enu_m: float | None, yaw_rad: float | None) -> None:
+    """TAKEOFF: climb straight up at MPC_TKO_SPEED to ``alt_enu_m`` (None: home + MIS_TAKEOFF_ALT), then HOLD."""
+    f = ctx.fleet
+    nav, params = ensure_nav(ent)
+    pos = f.pos_enu_m[row].copy()
+    if alt_enu_m is None:
+        base = f.home_enu_m[row, 2] if f.home_set[row] else pos[2]
+        alt_enu_m = float(base + params["MIS_TAKEOFF_ALT"])
+    goal = np.array([pos[0], pos[1], alt_enu_m])
+    sp = _speeds(ent, params, nav, climb=params["MPC_TKO_SPEED"])
+    f.flight_mode[row] = FlightMode.AUTO
+    set_route(f, row, _route([pos, goal], [sp, sp], math.nan if yaw_rad is None else yaw_rad))
+    _set_mode(nav, "takeoff", "climb", ctx.sim_time_s, goal)
+    f.nav_state[row] = NavState.TAKEOFF
+    ctx.services.note(ctx.sim_time_s, _name(ent), f"takeoff to z = {alt_enu_m:.1f} m")
+
+
+def _touchdown_z(ctx: StepContext, ent: int, row: int, x: float, y: float) -> tuple[float, float]:
+    """(surface height under (x, y), the resting height of the drone's centre there) [m]."""
+    body = esper.component_for_entity(ent, RigidBody)
+    below = float(body.half_extents_m[2]) + _carried_height(ctx, row)
+    surface = float(ctx.services.layout.surface_height_m(x, y))
+    return surface, surface + below
+
+
+def land_route(ctx: StepContext, ent: int, row: int, xy: np.ndarray | None) -> tuple[Route, np.ndarray]:
+    """A landing at ``xy`` (None: straight below): there at cruise, down at MPC_Z_V_AUTO_DN to MPC_LAND_ALT2
+    above the surface, then at MPC_LAND_SPEED to a point LAND_BELOW_M under the resting height."""
+    f = ctx.fleet
+    nav, params = ensure_nav(ent)
+    pos = f.pos_enu_m[row].copy()
+    xy = pos[:2].copy() if xy is None else np.asarray(xy, dtype=float)
+    surface, rest = _touchdown_z(ctx, ent, row, float(xy[0]), float(xy[1]))
+    fast = _speeds(ent, params, nav)
+    slow = _speeds(ent, params, nav, descent=params["MPC_LAND_SPEED"])
+    pts, sps = [pos], [fast]
+    if np.hypot(*(xy - pos[:2])) > GOAL_DONE_M:
+        pts.append(np.array([xy[0], xy[1], max(pos[2], rest + 2.0)]))
+        sps.append(fast)
+    slow_z = rest + params["MPC_LAND_ALT2"]
+    if pts[-1][2] > slow_z + 0.2:
+        # speeds are interpolated between route points: a 5 cm step makes the change at MPC_LAND_ALT2 sharp
+        pts += [np.array([xy[0], xy[1], slow_z]), np.array([xy[0], xy[1], slow_z - 0.05])]
+        sps += [fast, slow]
+    goal = np.array([xy[0], xy[1], rest - LAND_BELOW_M])
+    pts.append(goal)
+    sps.append(slow)
+    sps[0] = sps[1]
+    return _route(pts, sps), goal
+
+
+def start_land(ctx: StepContext, ent: int, row: int, xy: np.ndarray | None, *, mode: str = "land") -> None:
+    """LAND at ``xy`` (None: here); touchdown is the land detector's ON_GROUND; disarm after COM_DISARM_LAND."""
+    f = ctx.fleet
+    nav, _ = ensure_nav(ent)
+    route, goal = land_route(ctx, ent, row, xy)
+    f.flight_mode[row] = FlightMode.AUTO
+    set_route(f, row, route)
+    _set_mode(nav, mode, "land", ctx.sim_time_s, goal)
+    if mode == "land":
+        f.nav_state[row] = NavState.LAND
+    ctx.services.note(ctx.sim_time_s, _name(ent), f"landing at ({goal[0]:.1f}, {goal[1]:.1f})")
+
+
+def rtl_destination(f: Any, row: int, nav: NavRuntime) -> np.ndarray:
+    """RTL_TYPE 0: the closest of home and the rally points (horizontal distance)."""
+    home = f.home_enu_m[row].copy() if f.home_set[row] else f.pos_enu_m[row].copy()
+    best = home
+    here = f.pos_enu_m[row, :2]
+    for p in nav.rally_enu_m:
+        p = np.asarray(p, dtype=float)
+        if np.hypot(*(p[:2] - here)) < np.hypot(*(best[:2] - here)):
+            best = p
+    return best
+
+
+def start_rtl(ctx: StepContext, ent: int, row: int, *, nav_state: int = NavState.RTL) -> None:
+    """RTL: climb to RTL_RETURN_ALT above the destination (or stay higher), fly there at MPC_XY_CRUISE,
+    descend to RTL_DESCEND_ALT, wait RTL_LAND_DELAY (-1: hover there), land."""
+    f = ctx.fleet
+    nav, params = ensure_nav(ent)
+    dest = rtl_destination(f, row, nav)
+    pos = f.pos_enu_m[row].copy()
+    return_z = max(pos[2], dest[2] + params["RTL_RETURN_ALT"])
+    descend_z = min(return_z, dest[2] + params["RTL_DESCEND_ALT"])
+    sp = _speeds(ent, params, nav)
+    pts = [pos]
+    if return_z > pos[2] + 0.1:
+        pts.append(np.array([pos[0], pos[1], return_z]))
+    if np.hypot(*(dest[:2] - pos[:2])) > GOAL_DONE_M:
+        pts.append(np.array([dest[0], dest[1], return_z]))
+    end = np.array([dest[0], dest[1], descend_z])
+    if np.linalg.norm(end - pts[-1]) > 0.1 or len(pts) == 1:
+        pts.append(end)
+    f.flight_mode[row] = FlightMode.AUTO
+    set_route(f, row, _route(pts, [sp] * len(pts)))
+    _set_mode(nav, "rtl", "return", ctx.sim_time_s, pts[-1])
+    f.nav_state[row] = nav_state
+    ctx.services.note(ctx.sim_time_s, _name(ent), f"returning to ({dest[0]:.1f}, {dest[1]:.1f}) at z = {return_z:.1f} m")
+
+
+def disarm(ctx: StepContext, ent: int, row: int, why: str) -> None:
+    """Motors off (flight_mode DISARMED), route cleared, HOLD; ``why`` goes to the event log."""
+    f = ctx.fleet
+    nav, _ = ensure_nav(ent)
+    f.flight_mode[row] = FlightMode.DISARMED
+    set_route(f, row, None)
+    f.nav_state[row] = NavState.HOLD
+    _set_mode(nav, "", "", ctx.sim_time_s, None)
+    nav.armed_s, nav.took_off = math.nan, False
+    ctx.services.note(ctx.sim_time_s, _name(ent), f"disarmed: {why}")
+
+
+def _name(ent: int) -> str:
+    return esper.component_for_entity(ent, Identity).name
+
+
+def _carried_height(ctx: StepContext, row: int) -> float:
+    package = int(ctx.fleet.payload_entity[row])
+    if package < 0:
+        return 0.0
+    return float(2.0 * esper.component_for_entity(package, RigidBody).half_extents_m[2])
+
+
+def _mission_step_type(ent: int) -> str:
+    rt = esper.try_component(ent, MissionRuntime)
+    if rt is None or rt.state != "running":
+        return ""
+    return rt.spec.steps[rt.step_index].type
+
+
+# -- land detector ---------------------------------------------------------------------------
+class LandDetectorSystem(esper.Processor):
+    """Landed state of every drone from contact and motion (PX4's multicopter land detector).
+
+    Phase: STATE (after the read-back). Reads: pose, velocity, body rates, payload_entity, nav_state,
+    contacts. Writes: landed_state; NavRuntime contact/ground timers and ``took_off``.
+    """
+
+    phase = Phase.STATE
+    order = 30
+
+    def process(self, ctx: StepContext) -> None:
+        f = ctx.fleet
+        t = ctx.sim_time_s + ctx.dt_s           # the state read back is the state at the end of this step
+        for ent, (slot, body, nav, params) in esper.get_components(FleetSlot, RigidBody, NavRuntime, FlightParams):
+            row = slot.row
+            touching = ctx.physics.touching(body.body_id)
+            package = int(f.payload_entity[row])
+            if package >= 0:
+                carried = esper.component_for_entity(package, RigidBody).body_id
+                touching = (touching | ctx.physics.touching(carried)) - {body.body_id, carried}
+            vel = f.vel_enu_m_s[row]
+            still = (bool(touching) and abs(vel[2]) < params["LNDMC_Z_VEL_MAX"]
+                     and math.hypot(vel[0], vel[1]) < params["LNDMC_XY_VEL_MAX"]
+                     and float(np.linalg.norm(f.rate_flu_rad_s[row])) < math.radians(params["LNDMC_ROT_MAX"]))
+            prev = int(f.landed_state[row])
+            if still:
+                if math.isnan(nav.contact_since_s):
+                    nav.contact_since_s = t
+                on_ground = prev in (LandedState.UNDEFINED, LandedState.ON_GROUND) or \
+                    t - nav.contact_since_s >= LAND_TRIGGER_S - 1e-9
+            else:
+                nav.contact_since_s = math.nan
+                on_ground = False
+            if on_ground:
+                if prev != LandedState.ON_GROUND:
+                    nav.ground_since_s = t
+                f.landed_state[row] = LandedState.ON_GROUND
+                continue
+            nav.ground_since_s = math.nan
+            if f.flight_mode[row] != FlightMode.DISARMED:
+                nav.took_off = True
+            f.landed_state[row] = self._airborne_state(ent, int(f.nav_state[row]), nav)
+
+    @staticmethod
+    def _airborne_state(ent: int, nav_state: int, nav: NavRuntime) -> int:
+        if nav_state == NavState.TAKEOFF:
+            return LandedState.TAKEOFF
+        if nav.mode in ("land", "rtl") and nav.phase == "land":
+            return LandedState.LANDING
+        if nav_state == NavState.MISSION:
+            step = _mission_step_type(ent)
+            if step == "takeoff":
+                return LandedState.TAKEOFF
+            if step in ("land", "deliver", "recharge"):
+                return LandedState.LANDING
+        return LandedState.IN_AIR
+
+
+# -- navigator -------------------------------------------------------------------------------
+class NavigatorSystem(esper.Processor):
+    """Home, the navigator-flown modes (TAKEOFF, LAND, RTL) and auto-disarm.
+
+    Phase: MISSION (after the mission and emergency landing). Reads: pose, arrived, landed_state,
+    mission_state, FlightParams. Writes: home_enu_m/home_set, routes and flight_mode (mode changes,
+    disarm), nav_state; NavRuntime.
+    """
+
+    phase = Phase.MISSION
+    order = 20
+
+    def process(self, ctx: StepContext) -> None:
+        f = ctx.fleet
+        t = ctx.sim_time_s
+        for ent, (slot, nav, params) in esper.get_components(FleetSlot, NavRuntime, FlightParams):
+            row = slot.row
+            if not f.home_set[row]:
+                f.home_enu_m[row] = f.pos_enu_m[row]
+                f.home_set[row] = True
+            armed = f.flight_mode[row] != FlightMode.DISARMED
+            if not armed:
+                if nav.mode:
+                    _set_mode(nav, "", "", t, None)
+                nav.took_off, nav.armed_s = False, math.nan
+                continue
+            if nav.mode:
+                self._advance(ctx, ent, row, nav, params)
+            self._auto_disarm(ctx, ent, row, nav, params)
+
+    def _advance(self, ctx: StepContext, ent: int, row: int, nav: NavRuntime, params: FlightParams) -> None:
+        f = ctx.fleet
+        t = ctx.sim_time_s
+        name = _name(ent)
+        if nav.mode == "takeoff":
+            if f.arrived[row] and abs(f.pos_enu_m[row, 2] - nav.goal_enu_m[2]) < TAKEOFF_DONE_M:
+                _set_mode(nav, "", "", t, None)
+                f.nav_state[row] = NavState.HOLD
+                ctx.services.note(t, name, f"takeoff complete at z = {f.pos_enu_m[row, 2]:.1f} m: holding")
+            return
+        if nav.phase == "land":
+            if f.landed_state[row] == LandedState.ON_GROUND:
+                nav.phase, nav.phase_started_s = "landed", t
+                ctx.services.note(t, name, "landed")
+            return
+        if nav.mode == "rtl" and nav.phase == "return":
+            if f.arrived[row] and np.linalg.norm(f.pos_enu_m[row] - nav.goal_enu_m) < GOAL_DONE_M:
+                nav.phase, nav.phase_started_s = "delay", t
+            return
+        if nav.mode == "rtl" and nav.phase == "delay":
+            delay = params["RTL_LAND_DELAY"]
+            if delay >= 0.0 and t - nav.phase_started_s >= delay - 1e-9:
+                start_land(ctx, ent, row, nav.goal_enu_m[:2].copy(), mode="rtl")
+
+    def _auto_disarm(self, ctx: StepContext, ent: int, row: int, nav: NavRuntime, params: FlightParams) -> None:
+        f = ctx.fleet
+        if f.landed_state[row] != LandedState.ON_GROUND or f.mission_state[row] == MissionState.RUNNING:
+            return
+        t = ctx.sim_time_s
+        if nav.took_off:
+            delay = params["COM_DISARM_LAND"]
+            if delay >= 0.0 and not math.isnan(nav.ground_since_s) and t - nav.ground_since_s >= delay - 1e-9:
+                disarm(ctx, ent, row, f"landed {delay:g} s ago (COM_DISARM_LAND)")
+        else:
+            delay = params["COM_DISARM_PRFLT"]
+            if delay >= 0.0 and not math.isnan(nav.armed_s) and t - nav.armed_s >= delay - 1e-9:
+                disarm(ctx, ent, row, f"armed {delay:g} s without taking off (COM_DISARM_PRFLT)")
+
+
+__all__ = ["LandDetectorSystem", "NavigatorSystem", "disarm", "ensure_all_drones", "ensure_nav", "hold",
+           "land_route", "rtl_destination", "start_land", "start_rtl", "start_takeoff"]
