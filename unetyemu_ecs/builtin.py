@@ -28,6 +28,8 @@ from .systems.navigator import LandDetectorSystem, NavigatorSystem
 from .systems.motors import MotorSystem
 from .systems.payload import PayloadSystem
 from .transport.mavlink.component import MavlinkEndpoint
+from .transport.api import TransportPlugin
+from .transport.ros2.transport import create_ros2_transport
 
 QUADROTOR = frozenset({"quadrotor"})
 CAR = frozenset({"car"})
@@ -94,3 +96,7 @@ CAMERA = SensorPlugin(component=RgbCamera, system=RgbCameraSystem,
                       summary="RGB camera (ray cast): sensor_msgs/Image rgb8 + CameraInfo, optical frame")
 DEPTH_CAMERA = SensorPlugin(component=DepthCamera, system=DepthCameraSystem,
                             summary="depth camera (ray cast): sensor_msgs/Image 32FC1 metres (+inf no return) + CameraInfo")
+
+ROS2_TRANSPORT = TransportPlugin(
+    create=create_ros2_transport,
+    summary="ROS 2 node (--ros2 dds|rclpy): sensors, TF, /clock, mission status, /rosout; command topics")
