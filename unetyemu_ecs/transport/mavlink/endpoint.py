@@ -131,6 +131,7 @@ class DroneEndpoint:
         self.params_version = -1
         self.local_origin_enu: np.ndarray | None = None
         self.view: RowView | None = None
+        self.view_snapshot: tuple[Snapshot, int] | None = None     # newest snapshot not yet turned into a view
         self.imu: Any = None
         self.statustext_id = 0
         self.commands = {"accepted": 0, "rejected": 0, "unsupported": 0, "denied": 0, "expired": 0}
@@ -206,8 +207,9 @@ class DroneEndpoint:
                 link.send(mavlink2.MAVLink_ping_message(msg.time_usec, msg.seq, msg.get_srcSystem(),
                                                         msg.get_srcComponent()), to=addr)
         elif mid == 111:
-            if msg.tc1 == 0 and self.view is not None:
-                link.send(mavlink2.MAVLink_timesync_message(int(self.view.t_s * 1e9), msg.ts1), to=addr)
+            view = self.current_view()
+            if msg.tc1 == 0 and view is not None:
+                link.send(mavlink2.MAVLink_timesync_message(int(view.t_s * 1e9), msg.ts1), to=addr)
         elif mid == 84:
             self.on_position_target_local(msg)
         elif mid == 86:
@@ -262,11 +264,13 @@ class DroneEndpoint:
         self.pending[command_id] = Pending(link, addr, src, cmd, now_s)
 
     def home_alt_amsl(self) -> float:
-        return self.view.home_alt if self.view is not None else self.origin.alt_m
+        view = self.current_view()
+        return view.home_alt if view is not None else self.origin.alt_m
 
     def _enu(self, lat: float, lon: float, alt: float) -> tuple[float, float, float]:
         """ENU point of a geodetic one; NaN lat/lon keep the drone's position, NaN alt its height."""
-        here = self.view.pos_enu if self.view is not None else np.zeros(3)
+        view = self.current_view()
+        here = view.pos_enu if view is not None else np.zeros(3)
         if not _finite(lat, lon) and not (math.isnan(lat) and math.isnan(lon)):
             raise Denied("latitude/longitude must be finite")
         if math.isnan(lat):
@@ -629,11 +633,12 @@ class DroneEndpoint:
             px4.CAPABILITIES, px4.FLIGHT_SW_VERSION, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, self.sysid)
 
     def gps_global_origin(self) -> Any | None:
-        if self.local_origin_enu is None or self.view is None:
+        view = self.current_view()
+        if self.local_origin_enu is None or view is None:
             return None
         lat, lon, alt = enu_to_geodetic(self.local_origin_enu, self.origin)
         return mavlink2.MAVLink_gps_global_origin_message(int(round(float(lat) * 1e7)), int(round(float(lon) * 1e7)),
-                                                          int(round(float(alt) * 1000)), self.view.time_usec)
+                                                          int(round(float(alt) * 1000)), view.time_usec)
 
     def message(self, mid: int) -> Any | None:
         """One message ``mid`` now (REQUEST_MESSAGE), None when we never produce it."""
@@ -641,9 +646,18 @@ class DroneEndpoint:
             return self.autopilot_version()
         if mid == 49:
             return self.gps_global_origin()
-        if self.view is None:
+        view = self.current_view()
+        if view is None:
             return None
-        return build(mid, self.view, self.imu)
+        return build(mid, view, self.imu)
+
+    def current_view(self) -> RowView | None:
+        """The drone in the newest snapshot (built on first use after it arrived)."""
+        if self.view_snapshot is not None:
+            snap, row = self.view_snapshot
+            self.view = RowView(snap, row, self.origin, self.local_origin_enu)
+            self.view_snapshot = None
+        return self.view
 
     def on_snapshot(self, snap: Snapshot, row: int) -> None:
         """Telemetry that is due at this snapshot's sim time, on each link."""
@@ -653,8 +667,13 @@ class DroneEndpoint:
             if getattr(sample, "vehicle", None) == self.vehicle and hasattr(getattr(sample, "msg", None),
                                                                            "linear_acceleration"):
                 self.imu = sample.msg
-        view = RowView(snap, row, self.origin, self.local_origin_enu)
-        self.view = view
+        t = snap.sim_time_s
+        if self.view is not None and not any(0.0 < iv and t + 1e-9 >= self.due[k][mid]
+                                             for k in range(len(self.links)) for mid, iv in self.intervals[k].items()):
+            self.view_snapshot = (snap, row)     # nothing due: the view is built when a request needs it
+        else:
+            self.view_snapshot = None
+            self.view = RowView(snap, row, self.origin, self.local_origin_enu)
         params = snap.params.get(self.vehicle) if snap.params else None
         if params is not None and snap.params_version != self.params_version:
             self.params_version = snap.params_version
@@ -663,7 +682,6 @@ class DroneEndpoint:
                 self.params.update(changed)
                 self.write_params()
         built: dict[int, Any] = {}
-        t = snap.sim_time_s
         for k, link in enumerate(self.links):
             due = self.due[k]
             for mid, interval in self.intervals[k].items():

@@ -15,6 +15,7 @@ from . import px4
 
 CELLS = 4                          # battery pack reported as 4S Li-ion: 3.5 V empty .. 4.2 V full per cell
 UINT16_UNKNOWN = 65535
+_HOME_CACHE: dict[tuple[float, ...], tuple[float, float, float]] = {}     # transport thread only
 
 
 def _get(snap: Snapshot, name: str, row: int, default: Any) -> Any:
@@ -45,8 +46,13 @@ class RowView:
         self.lat_deg, self.lon_deg, self.alt_m = float(lat), float(lon), float(alt)
         self.home_set = bool(_get(snap, "home_set", row, False))
         self.home_enu = np.asarray(_get(snap, "home_enu_m", row, pos), dtype=float) if self.home_set else pos
-        hlat, hlon, halt = enu_to_geodetic(self.home_enu, origin)
-        self.home_lat, self.home_lon, self.home_alt = float(hlat), float(hlon), float(halt)
+        key = (origin.lat_deg, origin.lon_deg, origin.alt_m, *self.home_enu.tolist())
+        if key not in _HOME_CACHE:                  # home rarely moves: one geodetic conversion per home
+            if len(_HOME_CACHE) > 256:
+                _HOME_CACHE.clear()
+            hlat, hlon, halt = enu_to_geodetic(self.home_enu, origin)
+            _HOME_CACHE[key] = (float(hlat), float(hlon), float(halt))
+        self.home_lat, self.home_lon, self.home_alt = _HOME_CACHE[key]
         self.home_local_ned = enu_to_ned(self.home_enu - local_origin_enu_m)
         self.nav_state = int(_get(snap, "nav_state", row, 0))
         self.armed = px4.is_armed(_get(snap, "flight_mode", row, 0)) if "armed" not in snap.arrays \
