@@ -597,8 +597,7 @@ class DroneEndpoint:
                 self.statustext(result.text or f"{pend.param} not set: {result.reason}", SEVERITY_WARNING,
                                 links=[pend.link])
             return
-        self.ack(pend.link, pend.addr, pend.src, pend.command, mav_result(result),
-                 "" if result.ok else (result.text or result.reason))
+        self.ack(pend.link, pend.addr, pend.src, pend.command, mav_result(result))   # refusals: STATUSTEXT from the event log
 
     def expire(self, now_s: float) -> None:
         for command_id in [i for i, p in self.pending.items() if now_s - p.since_s > PENDING_TIMEOUT_S]:
