@@ -11,6 +11,7 @@ from .control.layers import Layer
 from .control.mixer import XQuadMixer, x_quad_priority_law
 from .control.position import GuidanceGains, cascade_pid_law
 from .mission import MissionSpec
+from .navigation.params import FlightParamsSpec
 from .plugins import ComponentPlugin, ControllerPlugin, SensorPlugin
 from .sensors.battery import BatterySensor, BatterySystem
 from .sensors.camera import DepthCamera, DepthCameraSystem, RgbCamera, RgbCameraSystem
@@ -55,6 +56,8 @@ MISSION = ComponentPlugin(component=MissionSpec, applies_to=QUADROTOR,
                           summary="mission started at t = 0 (steps: takeoff, cruise, land, pickup, deliver, recharge, idle)")
 MAVLINK = ComponentPlugin(component=MavlinkEndpoint, applies_to=QUADROTOR,
                           summary="MAVLink endpoint like PX4 SITL instance i: API link 14540+i, GCS link 14550, system id i+1")
+FLIGHT_PARAMS = ComponentPlugin(component=FlightParamsSpec, applies_to=QUADROTOR,
+                                summary="PX4 flight parameters of the navigator: {MIS_TAKEOFF_ALT: 5, RTL_RETURN_ALT: 30 ...}")
 TELEOP_SCRIPT = ComponentPlugin(component=TeleopScript, applies_to=QUADROTOR,
                                 summary="scripted manual sticks [throttle, pitch, roll, yaw] over time")
 

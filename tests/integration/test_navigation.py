@@ -23,7 +23,7 @@ def make_sim(components: str = "", pose: str = "{position_m: [0.0, 0.0, 0.3]}") 
 
 
 def result(sim: Simulation, command_id: int):
-    res = sim.nav_result(command_id)
+    res = sim.command_result(command_id)
     assert res is not None, f"command {command_id} has no result"
     return res
 
@@ -278,3 +278,34 @@ def test_pause_holds_and_resume_continues_the_mission():
     assert result_after(sim, sim.pause_mission("d1", resume=True)).status == CommandStatus.ACCEPTED
     run_until(sim, lambda: sim.mission_state("d1") == "COMPLETED", 30.0)
     assert sim.position_enu_m("d1")[0] == pytest.approx(30.0, abs=0.5)
+
+
+# -- flight parameters from the world file ---------------------------------------------------------
+def test_world_file_flight_params_set_the_takeoff_altitude():
+    # GIVEN a world file giving the drone MIS_TAKEOFF_ALT 4 m
+    sim = make_sim(components="      flight_params: {MIS_TAKEOFF_ALT: 4.0, COM_DISARM_LAND: 1.0}\n")
+    assert sim.get_param("d1", "MIS_TAKEOFF_ALT") == 4.0
+    assert sim.get_param("d1", "RTL_RETURN_ALT") == 60.0          # the PX4 default where none is given
+    home_z = sim.home_enu_m("d1")[2]
+    # WHEN it takes off without an altitude
+    sim.set_armed("d1")
+    sim.takeoff("d1")
+    run_until(sim, lambda: sim.nav_state("d1") == "HOLD" and sim.landed_state("d1") == "IN_AIR", 10.0)
+    sim.run(duration=1.0)
+    # THEN it hovers 4 m above home
+    assert sim.position_enu_m("d1")[2] == pytest.approx(home_z + 4.0, abs=0.3)
+
+
+@pytest.mark.parametrize("block, message", [
+    ("{MIS_TAKEOFF_ALT: -1}", "flight_params.MIS_TAKEOFF_ALT: must be >= 0"),
+    ("{NOPE: 1}", "flight_params.NOPE: unknown key"),
+    ("{COM_OBL_RC_ACT: 1.5}", "flight_params.COM_OBL_RC_ACT: must be a whole number"),
+    ("{RTL_RETURN_ALT: .nan}", "flight_params.RTL_RETURN_ALT: must be a finite number"),
+])
+def test_bad_world_file_flight_params_are_errors_naming_line_and_key(block, message):
+    from unetyemu_ecs.config.schema import ConfigError
+
+    with pytest.raises(ConfigError) as err:
+        load_world_text(flat_world(drone("d1", components=f"      flight_params: {block}\n")))
+    assert message in str(err.value)
+    assert ":17: vehicles[0].components." in str(err.value)

@@ -3,7 +3,7 @@
 
 Each method checks its arguments with :mod:`unetyemu_ecs.command_checks` (``ValueError`` naming what
 is wrong), queues the command and returns its id; the result (accepted, or rejected with a reason)
-appears in :meth:`nav_result` after the next step. The same commands come from ROS 2 and MAVLink.
+appears in :meth:`Simulation.command_result` after the next step. The same commands come from ROS 2 and MAVLink.
 Positions are ENU metres (z = height above the world's ground plane), yaw in degrees ENU (0 = east,
 counter-clockwise), like the rest of the API.
 """
@@ -20,7 +20,7 @@ from ..systems.flight_state import LandedState, MissionState, NavState
 from ..transport.bus import (Arm, ChangeSpeed, Gripper, Land, PauseMission, ReturnToLaunch, SetHome,
                              SetMissionCurrent, SetNavMode, SetParam, SetRallyPoints, StartMission, StoreMission,
                              Takeoff, Terminate)
-from .params import PARAM_BY_NAME, FlightParams
+from .params import PARAM_BY_NAME, FlightParams, FlightParamsSpec, params_from_spec
 
 
 class NavigationApi:
@@ -158,14 +158,9 @@ class NavigationApi:
             raise ValueError(f"get_param({name!r}): unknown flight parameter {param!r}")
         with self.ecs.active():
             params = esper.try_component(ent, FlightParams)
-        return PARAM_BY_NAME[param].default if params is None else params[param]
-
-    def nav_result(self, command_id: int) -> Any:
-        """The CommandResult of command ``command_id`` (None until it has been applied)."""
-        for result in reversed(self.services.results):
-            if result.command_id == command_id:
-                return result
-        return None
+            if params is None:
+                params = params_from_spec(esper.try_component(ent, FlightParamsSpec))
+        return params[param]
 
     def _checked_mission(self, name: str, mission: Any) -> Any:
         from ..config.schema import ConfigError, Issue

@@ -14,6 +14,7 @@ entry), except where an entry says otherwise.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -130,4 +131,44 @@ class FlightParams:
         return error
 
 
-__all__ = ["FlightParams", "PARAM_BY_NAME", "PX4_PARAMS", "ParamDef", "check_param", "default_values"]
+def _spec_post_init(self: object) -> None:
+    from ..config.schema import FieldError
+
+    for p in PX4_PARAMS:
+        value = getattr(self, p.name)
+        if value is not None and p.is_int and value != int(value):
+            raise FieldError(p.name, f"must be a whole number, got {value:g}")
+
+
+def _make_spec() -> type:
+    from typing import Annotated
+
+    from ..config.schema import Ge, Le
+
+    fields = [(p.name, Annotated[float, Ge(p.lo), Le(p.hi)] | None, field(default=None)) for p in PX4_PARAMS]
+    return dataclasses.make_dataclass("FlightParamsSpec", fields, frozen=True, kw_only=True,
+                                      namespace={"__post_init__": _spec_post_init, "__module__": __name__,
+                                                 "__doc__": _SPEC_DOC})
+
+
+_SPEC_DOC = """World-file overrides of a drone's flight parameters (world-file key ``flight_params``):
+``flight_params: {MIS_TAKEOFF_ALT: 5, RTL_RETURN_ALT: 30}``. One optional field per parameter of
+:data:`PX4_PARAMS`, each within its PX4 range; a name that is not a parameter, or a value out of range,
+is an error naming the file, line and key. Parameters not given keep their defaults."""
+
+FlightParamsSpec = _make_spec()
+
+
+def params_from_spec(spec: object | None) -> FlightParams:
+    """A drone's FlightParams: the defaults, overridden by the world file's ``flight_params`` (may be None)."""
+    params = FlightParams()
+    if spec is not None:
+        for p in PX4_PARAMS:
+            value = getattr(spec, p.name)
+            if value is not None:
+                params.values[p.name] = float(value)
+    return params
+
+
+__all__ = ["FlightParams", "FlightParamsSpec", "PARAM_BY_NAME", "PX4_PARAMS", "ParamDef", "check_param",
+           "default_values", "params_from_spec"]

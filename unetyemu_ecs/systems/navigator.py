@@ -29,7 +29,7 @@ import numpy as np
 from ..components.body import FleetSlot, Identity, RigidBody
 from ..components.flight import GuidanceLimits
 from ..components.mission import MissionRuntime
-from ..navigation.params import FlightParams
+from ..navigation.params import FlightParams, FlightParamsSpec, params_from_spec
 from ..navigation.state import NavRuntime
 from ..phases import Phase
 from ..world import StepContext
@@ -51,7 +51,7 @@ def ensure_nav(ent: int) -> tuple[NavRuntime, FlightParams]:
         esper.add_component(ent, nav)
     params = esper.try_component(ent, FlightParams)
     if params is None:
-        params = FlightParams()
+        params = params_from_spec(esper.try_component(ent, FlightParamsSpec))
         esper.add_component(ent, params)
     return nav, params
 
