@@ -97,6 +97,9 @@ def test_plugins_lists_the_builtin_components():
     res = unetyemu("plugins")
     assert res.returncode == 0
     assert "aero_drag" in res.stdout and "unetyemu_ecs.systems:" in res.stdout
+    # AND the transports group, with ROS 2 behind the same seam as any other
+    transports = res.stdout.split("unetyemu_ecs.transports:")[1]
+    assert transports.lstrip().startswith(("mavlink", "ros2")) and "  ros2 " in transports
 
 
 def _csv_rows(path: Path) -> int:

@@ -134,6 +134,8 @@ COMMANDS = [
     ["/d1/mission", "std_msgs/msg/String", {"data": "{not json"}],
     ["/d1/cmd_vel", "geometry_msgs/msg/Twist", {"linear": {"x": 1.0, "y": "NaN"}}],
     ["/c1/cmd_vel", "geometry_msgs/msg/Twist", {"linear": {"x": 90.0}}],
+    # in every transport's range but beyond this car's top speed: refused by the car's command system
+    ["/c1/cmd_vel", "geometry_msgs/msg/Twist", {"linear": {"x": 28.0}}],
     # a good mission last: fly to (-5, 5) at 4 m and land there
     ["/d1/mission", "std_msgs/msg/String", {"data": json.dumps({"name": "hop", "steps": [
         {"type": "cruise", "waypoints": [{"x": -5.0, "y": 5.0, "z": 4.0}]}, {"type": "land"}]})}],
@@ -166,7 +168,8 @@ def test_commands_from_a_ros2_peer_drive_the_vehicles_and_garbage_is_rejected_wi
     # AND each piece of garbage was rejected with its reason, in the event log and on /rosout
     reasons = ["4 values", "set_target('d1'): values must be finite", "mission rejected",
                "cmd_vel('d1'): values must be finite",
-               "rejected /c1/cmd_vel"]              # the car beyond its (or the API's) speed limit
+               "rejected /c1/cmd_vel",              # the car beyond the API's speed limit
+               "is beyond the top speed"]           # ... and beyond its own (a CommandResult of source ros2)
     for reason in reasons:
         assert any(reason in e for e in events), (reason, events)
         assert any(reason in line for line in got["rosout"]), (reason, got["rosout"])

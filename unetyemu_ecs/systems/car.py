@@ -32,6 +32,7 @@ STOPPED_SPEED_M_S = 0.2        # a route is done when the car is this slow withi
 ASLEEP_AFTER_S = 3.0           # a parked car still for this long is asleep in Bullet (its 2 s deactivation time)
 STILL_M_S = 0.005              # ... where "still" means base speed and turn rate below this [m/s, rad/s]
 ROUTE_FOLLOWING_HZ = 60.0      # pure pursuit and the speed profile (the speed and steering loops run every step)
+CAR_COMMANDS = (SetTarget, DriveRoute, Drive, CmdVel, Arm)   # what a car takes; others are "unsupported"
 
 
 def _gains(ent: int) -> CarGuidanceParams:
@@ -41,7 +42,7 @@ def _gains(ent: int) -> CarGuidanceParams:
 class CarCommandSystem(esper.Processor):
     """Turn commands into drive modes, paths and setpoints. Phase: COMMANDS (order 20).
 
-    Reads: the inbox (commands for cars), CarRoute components (started at t = 0), cmd_hold_until_s.
+    Reads: the inbox (the CAR_COMMANDS for cars), CarRoute components (started at t = 0), cmd_hold_until_s.
     Writes: drive_mode, drive_cmd, cmd_vel, car_path, cmd_hold_until_s (a streamed teleop/cmd_vel
     that lapses brakes the car to a stop).
     """
@@ -60,7 +61,7 @@ class CarCommandSystem(esper.Processor):
                 row = f.row_of(ent)
                 wp = np.array([[w.x, w.y] for w in route.waypoints])
                 self._give_path(ctx, ent, row, wp, route.speed_m_s, route.loop, route.laps)
-        serve_commands(ctx, CarDynamics, self._apply, self._brake_after_lapse)
+        serve_commands(ctx, CarDynamics, self._apply, self._brake_after_lapse, CAR_COMMANDS)
 
     def _brake_after_lapse(self, ctx: StepContext, ent: int, row: int) -> None:
         """No new teleop/cmd_vel within the command timeout: brake to a stop and hold there."""
@@ -121,7 +122,7 @@ class CarCommandSystem(esper.Processor):
             else:
                 _enter_mode(ctx, ent, row, DriveMode.PARKED)
             return ""
-        return f"a car does not take {type(msg).__name__} commands"
+        raise TypeError(f"CarCommandSystem: {type(msg).__name__} is not in CAR_COMMANDS")
 
 
 def _enter_mode(ctx: StepContext, ent: int, row: int, mode: DriveMode) -> None:
