@@ -621,7 +621,8 @@ class DroneEndpoint:
     def on_event(self, text: str) -> None:
         low = text.lower()
         severity = SEVERITY_CRITICAL if any(w in low for w in ("crash", "empty", "terminat", "overweight")) else \
-            SEVERITY_WARNING if any(w in low for w in ("refus", "reject", "fail", "low", "lost", "breach")) else \
+            SEVERITY_WARNING if any(w in low for w in ("refus", "reject", "denied", "fail", "low", "lost", "breach",
+                                                       "timed out")) else \
             SEVERITY_INFO
         self.statustext(text, severity)
 
