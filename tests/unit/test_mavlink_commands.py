@@ -104,3 +104,14 @@ def test_values_outside_the_world_or_not_numbers_are_denied_and_nothing_submitte
     handle(ep, mavlink2.MAVLink_command_long_message(1, 1, 176, 0, 1, 5, 0, 0, 0, 0, 0))        # ACRO
     handle(ep, mavlink2.MAVLink_command_int_message(1, 1, 1, 192, 0, 0, -1, 1, 0, 0, 0, 0, 10))  # LOCAL_NED frame
     assert submitted(ep) == [] and ep.commands["denied"] == 5
+
+
+def test_mission_item_numbers_need_an_uploaded_mission_holding_them(ep):
+    # GIVEN no uploaded mission: WHEN a GCS sets the current item / starts from item 3 THEN DENIED
+    handle(ep, mavlink2.MAVLink_command_long_message(1, 1, 224, 0, 3, 0, 0, 0, 0, 0, 0))
+    handle(ep, mavlink2.MAVLink_command_long_message(1, 1, 300, 0, 3, 0, 0, 0, 0, 0, 0))
+    assert submitted(ep) == [] and ep.commands["denied"] == 2
+    # a plain MISSION_START goes to the simulation, which answers whether there is a mission to run
+    handle(ep, mavlink2.MAVLink_command_long_message(1, 1, 300, 0, 0, 0, 0, 0, 0, 0, 0))
+    (start,) = submitted(ep)
+    assert isinstance(start, bus.StartMission) and start.first_step == 0

@@ -263,6 +263,11 @@ class DroneEndpoint:
         command_id = self.submit(command)
         self.pending[command_id] = Pending(link, addr, src, cmd, now_s)
 
+    def step_of_seq(self, seq: int) -> int | None:
+        """Mission step of MAVLink item ``seq`` (MISSION_START and DO_SET_MISSION_CURRENT number items)."""
+        lookup = getattr(self.missions, "step_of_seq", None)
+        return lookup(seq) if lookup is not None else seq
+
     def home_alt_amsl(self) -> float:
         view = self.current_view()
         return view.home_alt if view is not None else self.origin.alt_m
@@ -369,11 +374,17 @@ class DroneEndpoint:
             first = 0 if math.isnan(p[0]) else p[0]
             if not (_finite(first) and first >= 0 and first == int(first)):
                 raise Denied(f"first item {p[0]} must be a whole number >= 0")
-            return bus.StartMission(v, int(first), **mk)
+            step = self.step_of_seq(int(first))
+            if step is None and first != 0:
+                raise Denied(f"the uploaded mission has no item {int(first)}")
+            return bus.StartMission(v, step or 0, **mk)        # no mission at all: the simulation refuses
         if cmd == CMD_DO_SET_MISSION_CURRENT:
             if not (_finite(p[0]) and p[0] >= 0 and p[0] == int(p[0])):
                 raise Denied(f"mission item {p[0]} must be a whole number >= 0")
-            return bus.SetMissionCurrent(v, int(p[0]), **mk)
+            step = self.step_of_seq(int(p[0]))
+            if step is None:
+                raise Denied(f"the uploaded mission has no item {int(p[0])}")
+            return bus.SetMissionCurrent(v, step, **mk)
         if cmd == CMD_DO_PAUSE_CONTINUE:
             if p[0] not in (0.0, 1.0):
                 raise Denied("param1 must be 0 (pause) or 1 (continue)")
