@@ -210,15 +210,14 @@ def test_a_refused_command_is_acked_temporarily_rejected_and_its_reason_arrives_
     sim, api, _, _ = rig
     c = api[0]
     assert wait_for(sim, c, "HEARTBEAT") is not None
-    # WHEN a client switches to OFFBOARD without streaming setpoints first (PX4 refuses that)
-    c.command_long(176, 1.0, 6.0, 0.0)
-    ack = wait_for(sim, c, "COMMAND_ACK", lambda m: m.command == 176)
+    # WHEN a client commands a takeoff while the drone is disarmed (PX4 refuses that)
+    c.command_long(22, 0.0, 0.0, 0.0, math.nan, math.nan, math.nan, math.nan)
+    ack = wait_for(sim, c, "COMMAND_ACK", lambda m: m.command == 22)
     # THEN the ACK says TEMPORARILY_REJECTED, as the simulation's result did, and the refusal's text
     # from the event log arrives as a WARNING STATUSTEXT
-    result = next(r for r in sim.services.results if r.kind == "nav_mode")
+    result = next(r for r in sim.services.results if r.kind == "takeoff")
     assert result.source == "mavlink" and result.status == 2, result            # REJECTED_STATE
     assert ack is not None and ack.result == 1
     text = wait_for(sim, c, "STATUSTEXT", lambda m: result.text[:20] in m.text)       # 50-char chunks
     assert text is not None and text.severity == 4
-    hb = wait_for(sim, c, "HEARTBEAT")
-    assert (hb.custom_mode >> 16) & 0xFF == AUTO                                # mode unchanged
+    assert sim.fleet.flight_mode[sim.row("d1")] == 0
