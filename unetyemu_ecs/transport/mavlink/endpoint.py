@@ -278,6 +278,8 @@ class DroneEndpoint:
         here = view.pos_enu if view is not None else np.zeros(3)
         if not _finite(lat, lon) and not (math.isnan(lat) and math.isnan(lon)):
             raise Denied("latitude/longitude must be finite")
+        if math.isinf(alt):
+            raise Denied("altitude must be finite")
         if math.isnan(lat):
             x, y = float(here[0]), float(here[1])
             z = float(here[2]) if math.isnan(alt) else float(alt - self.origin.alt_m)
