@@ -272,7 +272,8 @@ def check_change_speed(vehicle: str, which: object, speed_m_s: object) -> tuple[
     caps = {"ground": MAX_CRUISE_SPEED_M_S, "climb": MAX_CLIMB_SPEED_M_S, "descent": MAX_DESCENT_SPEED_M_S}
     if which not in caps:
         raise ValueError(f"{what}: which must be one of {', '.join(NAV_SPEED_KINDS)}, got {which!r}")
-    if not (is_real(speed_m_s) and math.isfinite(speed_m_s) and 0.0 < speed_m_s <= caps[which]):  # type: ignore[operator]
+    ok = is_real(speed_m_s) and math.isfinite(speed_m_s) and 0.0 < speed_m_s <= caps[which]  # type: ignore[operator]
+    if not ok:
         raise ValueError(f"{what}: {which} speed must be in (0, {caps[which]:g}] m/s, got {speed_m_s!r}")
     return str(which), float(speed_m_s)  # type: ignore[arg-type]
 
@@ -301,3 +302,43 @@ def check_rally_points(vehicle: str, layout: SceneLayout, points: Iterable[Seque
     if len(pts) > MAX_WAYPOINTS:
         raise ValueError(f"{what}: at most {MAX_WAYPOINTS} rally points, got {len(pts)}")
     return pts
+
+
+def check_offboard_setpoint(vehicle: str, layout: SceneLayout, pos: Sequence[float] | None = None,
+                            vel_enu: Sequence[float] | None = None, vel_flu: Sequence[float] | None = None,
+                            yaw_deg: float | None = None, yaw_rate_rad_s: float | None = None
+                            ) -> tuple[tuple[float, float, float] | None, tuple[float, float, float] | None,
+                                       tuple[float, float, float] | None, float | None, float | None]:
+    """One OFFBOARD setpoint: a position (as check_position) or a velocity, ENU or body FLU (each part within
+    +-MAX_CRUISE_SPEED_M_S m/s), never both; a heading (deg ENU, one turn either way) or a yaw rate
+    (+-MAX_YAW_RATE_RAD_S), with a velocity not both. Returns ``(pos, vel_enu, vel_flu, yaw_rad,
+    yaw_rate_rad_s)`` as the OffboardSetpoint fields."""
+    what = f"offboard_setpoint({vehicle!r})"
+    if pos is not None and (vel_enu is not None or vel_flu is not None):
+        raise ValueError(f"{what}: give a position or a velocity, not both")
+    if vel_enu is not None and vel_flu is not None:
+        raise ValueError(f"{what}: give an ENU or a body (FLU) velocity, not both")
+    if pos is None and vel_enu is None and vel_flu is None and yaw_deg is None and yaw_rate_rad_s is None:
+        raise ValueError(f"{what}: give a position, a velocity, a yaw or a yaw rate")
+    if pos is None and yaw_deg is not None and yaw_rate_rad_s is not None:
+        raise ValueError(f"{what}: give a yaw or a yaw rate, not both")
+
+    def velocity(name: str, v: Sequence[float] | None) -> tuple[float, float, float] | None:
+        if v is None:
+            return None
+        vals = tuple(v)
+        if len(vals) != 3 or not all(is_real(x) and math.isfinite(x) and abs(x) <= MAX_CRUISE_SPEED_M_S for x in vals):
+            raise ValueError(f"{what}: {name} must be 3 finite numbers within +-{MAX_CRUISE_SPEED_M_S:g} m/s, "
+                             f"got {v!r}")
+        return float(vals[0]), float(vals[1]), float(vals[2])
+
+    checked_pos = None if pos is None else check_position(what, layout, pos)
+    if yaw_deg is not None and not (is_real(yaw_deg) and math.isfinite(yaw_deg) and abs(yaw_deg) <= MAX_YAW_DEG):
+        raise ValueError(f"{what}: yaw_deg must be a number in [-{MAX_YAW_DEG:g}, {MAX_YAW_DEG:g}], got {yaw_deg!r}")
+    if yaw_rate_rad_s is not None and not (is_real(yaw_rate_rad_s) and math.isfinite(yaw_rate_rad_s)
+                                           and abs(yaw_rate_rad_s) <= MAX_YAW_RATE_RAD_S):
+        raise ValueError(f"{what}: yaw_rate_rad_s must be within +-{MAX_YAW_RATE_RAD_S:g} rad/s, "
+                         f"got {yaw_rate_rad_s!r}")
+    return (checked_pos, velocity("vel_enu", vel_enu), velocity("vel_flu", vel_flu),
+            None if yaw_deg is None else math.radians(yaw_deg),
+            None if yaw_rate_rad_s is None else float(yaw_rate_rad_s))

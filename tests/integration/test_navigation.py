@@ -267,7 +267,8 @@ def test_a_stored_mission_waits_then_takes_off_first_flies_and_returns_home():
 
 def test_pause_holds_and_resume_continues_the_mission():
     sim = make_sim()
-    sim.load_mission("d1", '[{"type": "takeoff", "altitude_m": 3}, {"type": "cruise", "waypoints": [{"x": 30, "y": 0, "z": 3}]}]')
+    sim.load_mission("d1", '[{"type": "takeoff", "altitude_m": 3}, '
+                           '{"type": "cruise", "waypoints": [{"x": 30, "y": 0, "z": 3}]}]')
     run_until(sim, lambda: sim.position_enu_m("d1")[0] > 5.0, 20.0)
     assert result_after(sim, sim.pause_mission("d1")).status == CommandStatus.ACCEPTED
     assert sim.mission_state("d1") == "PAUSED" and sim.nav_state("d1") == "HOLD"
@@ -309,3 +310,69 @@ def test_bad_world_file_flight_params_are_errors_naming_line_and_key(block, mess
         load_world_text(flat_world(drone("d1", components=f"      flight_params: {block}\n")))
     assert message in str(err.value)
     assert ":17: vehicles[0].components." in str(err.value)
+
+
+# -- OFFBOARD ----------------------------------------------------------------------------------
+def stream(sim: Simulation, seconds: float, **setpoint) -> None:
+    """Send the same OFFBOARD setpoint at 10 Hz for ``seconds`` of sim time."""
+    for _ in range(round(seconds / 0.1)):
+        sim.offboard_setpoint("d1", **setpoint)
+        sim.run(duration=0.1)
+
+
+def heading(sim: Simulation) -> float:
+    from unetyemu_ecs.frames import yaw_rad_from_quat_xyzw
+
+    return float(yaw_rad_from_quat_xyzw(sim.attitude_enu_flu_xyzw("d1")))
+
+
+def test_offboard_without_a_setpoint_stream_is_refused_with_reason_no_setpoint_stream():
+    sim = make_sim()
+    fly_up(sim, 3.0)
+    res = result_after(sim, sim.set_nav_mode("d1", "OFFBOARD"))
+    assert (res.status, res.reason) == (CommandStatus.REJECTED_STATE, "no_setpoint_stream")
+    assert sim.nav_state("d1") == "HOLD"
+
+
+def test_offboard_flies_position_enu_velocity_and_body_velocity_with_yaw_rate():
+    # GIVEN a drone hovering 3 m up with an OFFBOARD stream running
+    sim = make_sim()
+    fly_up(sim, 3.0)
+    start = sim.position_enu_m("d1").copy()
+    sim.offboard_setpoint("d1", pos=(start[0] + 4.0, start[1], 4.0))
+    sim.step()
+    # WHEN it switches to OFFBOARD
+    assert result_after(sim, sim.set_nav_mode("d1", "OFFBOARD")).status == CommandStatus.ACCEPTED
+    assert sim.nav_state("d1") == "OFFBOARD"
+    # THEN a position setpoint is flown to
+    stream(sim, 6.0, pos=(start[0] + 4.0, start[1], 4.0))
+    assert np.linalg.norm(sim.position_enu_m("d1") - (start[0] + 4.0, start[1], 4.0)) < 0.4
+    # AND an ENU velocity setpoint (north 1.5 m/s) whatever the heading
+    stream(sim, 3.0, vel_enu=(0.0, 1.5, 0.0))
+    assert sim.velocity_enu_m_s("d1")[:2] == pytest.approx((0.0, 1.5), abs=0.25)
+    # AND a body velocity with a yaw rate really turns the drone
+    yaw0 = heading(sim)
+    stream(sim, 3.0, vel_flu=(0.0, 0.0, 0.0), yaw_rate_rad_s=0.5)
+    turned = (heading(sim) - yaw0 + np.pi) % (2 * np.pi) - np.pi
+    assert turned == pytest.approx(1.5, abs=0.3)
+    # AND a heading setpoint is held
+    stream(sim, 4.0, vel_flu=(0.0, 0.0, 0.0), yaw_deg=0.0)
+    assert abs(heading(sim)) < 0.1
+
+
+@pytest.mark.parametrize("action, nav_after", [(0, "HOLD"), (4, "LAND")])
+def test_offboard_stream_lapse_triggers_com_obl_rc_act_failsafe(action, nav_after):
+    sim = make_sim()
+    sim.set_param("d1", "COM_OBL_RC_ACT", action)
+    fly_up(sim, 3.0)
+    stream(sim, 0.3, vel_enu=(1.0, 0.0, 0.0))
+    sim.set_nav_mode("d1", "OFFBOARD")
+    stream(sim, 1.0, vel_enu=(1.0, 0.0, 0.0))
+    assert sim.nav_state("d1") == "OFFBOARD"
+    # WHEN the stream stops for longer than COM_OF_LOSS_T (1 s)
+    last = sim.sim_time_s
+    run_until(sim, lambda: sim.nav_state("d1") != "OFFBOARD", 3.0, every_s=1 / 240)
+    # THEN the failsafe takes over one COM_OF_LOSS_T later, and says so
+    assert sim.sim_time_s - last == pytest.approx(1.0, abs=0.15)
+    assert sim.nav_state("d1") == nav_after
+    assert any("offboard setpoints lost" in text for _, _, text in sim.events)

@@ -17,9 +17,9 @@ import numpy as np
 
 from .. import command_checks as cc
 from ..systems.flight_state import LandedState, MissionState, NavState
-from ..transport.bus import (Arm, ChangeSpeed, Gripper, Land, PauseMission, ReturnToLaunch, SetHome,
-                             SetMissionCurrent, SetNavMode, SetParam, SetRallyPoints, StartMission, StoreMission,
-                             Takeoff, Terminate)
+from ..transport.bus import (Arm, ChangeSpeed, Gripper, Land, OffboardSetpoint, PauseMission, ReturnToLaunch,
+                             SetHome, SetMissionCurrent, SetNavMode, SetParam, SetRallyPoints, StartMission,
+                             StoreMission, Takeoff, Terminate)
 from .params import PARAM_BY_NAME, FlightParams, FlightParamsSpec, params_from_spec
 
 
@@ -65,6 +65,18 @@ class NavigationApi:
         MPC_XY_CRUISE, descend to RTL_DESCEND_ALT, wait RTL_LAND_DELAY, land and disarm."""
         self._drone(name)
         return self.inbox.submit(ReturnToLaunch(name))
+
+    def offboard_setpoint(self, name: str, *, pos: tuple[float, float, float] | None = None,
+                          vel_enu: tuple[float, float, float] | None = None,
+                          vel_flu: tuple[float, float, float] | None = None, yaw_deg: float | None = None,
+                          yaw_rate_rad_s: float | None = None) -> int:
+        """One setpoint of an OFFBOARD stream: a position ``pos`` or a velocity (``vel_enu`` world frame,
+        or ``vel_flu`` body frame forward/left/up) [m, m/s], a heading ``yaw_deg`` or a yaw rate (CCW).
+        Stream them (faster than 1 / COM_OF_LOSS_T); ``set_nav_mode(name, "OFFBOARD")`` needs one from the
+        last COM_OF_LOSS_T seconds; when they stop for that long, COM_OBL_RC_ACT's failsafe takes over."""
+        self._drone(name)
+        return self.inbox.submit(OffboardSetpoint(name, *cc.check_offboard_setpoint(
+            name, self.layout, pos, vel_enu, vel_flu, yaw_deg, yaw_rate_rad_s)))
 
     def terminate(self, name: str) -> int:
         """Flight termination: motors off now, wherever the drone is."""
@@ -134,7 +146,8 @@ class NavigationApi:
         return NavState(int(self._fleet_value(name, "nav_state"))).name
 
     def landed_state(self, name: str) -> str:
-        """The land detector's verdict: "ON_GROUND", "IN_AIR", "TAKEOFF", "LANDING" ("UNDEFINED" before the first step)."""
+        """The land detector's verdict: "ON_GROUND", "IN_AIR", "TAKEOFF", "LANDING" ("UNDEFINED" before the
+        first step)."""
         return LandedState(int(self._fleet_value(name, "landed_state"))).name
 
     def mission_state(self, name: str) -> str:

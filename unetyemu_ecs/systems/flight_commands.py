@@ -11,14 +11,15 @@ from ..components.mission import MissionRuntime
 from ..navigation.state import NavRuntime
 from ..phases import Phase
 from ..transport.api import CommandStatus
-from ..transport.bus import (Arm, ChangeSpeed, CmdVel, Gripper, Land, LoadMission, PauseMission, ReturnToLaunch,
-                             SetHome, SetMissionCurrent, SetNavMode, SetParam, SetRallyPoints, SetTarget, StartMission,
-                             StoreMission, Takeoff, Teleop, Terminate)
+from ..transport.bus import (Arm, ChangeSpeed, CmdVel, Gripper, Land, LoadMission, OffboardSetpoint, PauseMission,
+                             ReturnToLaunch, SetHome, SetMissionCurrent, SetNavMode, SetParam, SetRallyPoints,
+                             SetTarget, StartMission, StoreMission, Takeoff, Teleop, Terminate)
 from ..world import StepContext
 from .commands import Refusal, serve_commands, warn_if_obstructed
 from .flight_state import (FlightMode, LandedState, MissionState, NavState, PayloadRequest, PayloadResult, Route,
                            set_route)
-from .navigator import disarm, ensure_all_drones, ensure_nav, hold, start_land, start_rtl, start_takeoff
+from .navigator import (disarm, ensure_all_drones, ensure_nav, fly_offboard, hold, offboard_fresh, start_land,
+                        start_rtl, start_takeoff)
 
 
 class FlightCommandSystem(esper.Processor):
@@ -147,7 +148,10 @@ class FlightCommandSystem(esper.Processor):
                 f.home_set[row] = True
             nav.armed_s, nav.took_off = ctx.sim_time_s, False
             f.flight_mode[row] = FlightMode.AUTO
-            hold(ctx, ent, row)
+            if f.nav_state[row] == NavState.OFFBOARD and nav.offboard is not None:
+                fly_offboard(ctx, ent, row, nav, ensure_nav(ent)[1], new=True)
+            else:
+                hold(ctx, ent, row)
             return ""
         if not armed:
             return ""
@@ -179,8 +183,32 @@ class FlightCommandSystem(esper.Processor):
             return self._on_ReturnToLaunch(ctx, ent, row, ReturnToLaunch(msg.vehicle))
         if mode == NavState.MISSION:
             return _start_mission(ctx, ent, row, None)
+        if mode == NavState.OFFBOARD:
+            return self._to_offboard(ctx, ent, row)
         return Refusal(CommandStatus.REJECTED_INVALID, "unsupported",
                        f"navigation mode {mode.name} is not available through SetNavMode yet")
+
+    def _to_offboard(self, ctx: StepContext, ent: int, row: int) -> str | Refusal:
+        """OFFBOARD needs a setpoint from the last COM_OF_LOSS_T seconds (PX4: stream before switching)."""
+        nav, params = ensure_nav(ent)
+        if not offboard_fresh(nav, params, ctx.sim_time_s):
+            return Refusal(CommandStatus.REJECTED_STATE, "no_setpoint_stream",
+                           f"Offboard denied: no setpoint within COM_OF_LOSS_T = {params['COM_OF_LOSS_T']:g} s "
+                           "(stream setpoints first)")
+        _pause_mission(ctx, ent, "offboard")
+        _end_nav_mode(ent)
+        ctx.fleet.nav_state[row] = NavState.OFFBOARD
+        fly_offboard(ctx, ent, row, nav, params, new=True)
+        return ""
+
+    def _on_OffboardSetpoint(self, ctx: StepContext, ent: int, row: int, msg: OffboardSetpoint) -> str | Refusal:
+        """Keep the newest setpoint of the stream (checked by command_checks.check_offboard_setpoint); fly it
+        when the drone is in OFFBOARD."""
+        nav, params = ensure_nav(ent)
+        nav.offboard, nav.offboard_s = msg, ctx.sim_time_s
+        if ctx.fleet.nav_state[row] == NavState.OFFBOARD and not nav.mode:
+            fly_offboard(ctx, ent, row, nav, params, new=True)
+        return ""
 
     def _to_hold(self, ctx: StepContext, ent: int, row: int) -> str | Refusal:
         _pause_mission(ctx, ent, "hold")
@@ -343,7 +371,8 @@ def arming_refusal(f, ent: int, row: int) -> Refusal | None:
                            f"Arming denied: payload {f.payload_kg[row]:.2f} kg exceeds {bay.max_payload_kg:g} kg")
         return Refusal(CommandStatus.REJECTED_STATE, "motors_disabled", "Arming denied: motors disabled")
     if f.landed_state[row] not in (LandedState.ON_GROUND, LandedState.UNDEFINED):
-        return Refusal(CommandStatus.REJECTED_STATE, "in_air", "Arming denied: not on the ground (force it to arm in the air)")
+        return Refusal(CommandStatus.REJECTED_STATE, "in_air",
+                       "Arming denied: not on the ground (force it to arm in the air)")
     return None
 
 

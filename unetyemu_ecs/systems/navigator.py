@@ -198,7 +198,8 @@ def start_rtl(ctx: StepContext, ent: int, row: int, *, nav_state: int = NavState
     set_route(f, row, _route(pts, [sp] * len(pts)))
     _set_mode(nav, "rtl", "return", ctx.sim_time_s, pts[-1])
     f.nav_state[row] = nav_state
-    ctx.services.note(ctx.sim_time_s, _name(ent), f"returning to ({dest[0]:.1f}, {dest[1]:.1f}) at z = {return_z:.1f} m")
+    ctx.services.note(ctx.sim_time_s, _name(ent),
+                      f"returning to ({dest[0]:.1f}, {dest[1]:.1f}) at z = {return_z:.1f} m")
 
 
 def disarm(ctx: StepContext, ent: int, row: int, why: str) -> None:
@@ -229,6 +230,83 @@ def _mission_step_type(ent: int) -> str:
     if rt is None or rt.state != "running":
         return ""
     return rt.spec.steps[rt.step_index].type
+
+
+# -- OFFBOARD ----------------------------------------------------------------------------------
+OFFBOARD_YAW_GAIN = 2.0     # [1/s] heading error -> yaw rate while an OFFBOARD setpoint holds a heading
+
+
+def offboard_fresh(nav: NavRuntime, params: FlightParams, t: float) -> bool:
+    """An OFFBOARD setpoint arrived within the last COM_OF_LOSS_T seconds."""
+    return nav.offboard is not None and t - nav.offboard_s <= params["COM_OF_LOSS_T"] + 1e-9
+
+
+def fly_offboard(ctx: StepContext, ent: int, row: int, nav: NavRuntime, params: FlightParams, new: bool) -> None:
+    """Fly the newest OFFBOARD setpoint: a position on the AUTO path (re-planned when a new one arrives), a
+    velocity (ENU, turned into body FLU with the heading every step, or body FLU) on the VELOCITY path;
+    a heading through a yaw-rate loop, or a yaw rate."""
+    from ..frames import yaw_rad_from_quat_xyzw
+
+    f = ctx.fleet
+    sp = nav.offboard
+    if f.flight_mode[row] == FlightMode.DISARMED or sp is None:
+        return
+    yaw = float(yaw_rad_from_quat_xyzw(f.quat_enu_flu_xyzw[row]))
+    if sp.pos_enu_m is not None:
+        if new or f.flight_mode[row] != FlightMode.AUTO:
+            lim = esper.component_for_entity(ent, GuidanceLimits)
+            speeds = (params["MPC_XY_VEL_MAX"] or lim.cruise_speed_m_s,
+                      min(params["MPC_Z_V_AUTO_UP"], lim.lim_climb_m_s),
+                      min(params["MPC_Z_V_AUTO_DN"], lim.lim_descent_m_s))
+            pos = f.pos_enu_m[row].copy()
+            yaw_sp = sp.yaw_rad if sp.yaw_rad is not None else math.nan
+            f.flight_mode[row] = FlightMode.AUTO
+            set_route(f, row, _route([pos, np.asarray(sp.pos_enu_m, dtype=float)], [speeds, speeds], yaw_sp))
+        return
+    if f.flight_mode[row] != FlightMode.VELOCITY:
+        f.flight_mode[row] = FlightMode.VELOCITY
+        set_route(f, row, None)
+    if sp.vel_flu_m_s is not None:
+        f.vel_cmd_flu_m_s[row] = sp.vel_flu_m_s
+    elif sp.vel_enu_m_s is not None:
+        ve, vn, vu = sp.vel_enu_m_s
+        c, s_ = math.cos(yaw), math.sin(yaw)
+        f.vel_cmd_flu_m_s[row] = (c * ve + s_ * vn, -s_ * ve + c * vn, vu)
+    else:
+        f.vel_cmd_flu_m_s[row] = 0.0
+    max_rate = math.radians(params["MPC_YAWRAUTO_MAX"])
+    if sp.yaw_rate_rad_s is not None:
+        f.yaw_rate_cmd_rad_s[row] = sp.yaw_rate_rad_s
+    elif sp.yaw_rad is not None:
+        err = (sp.yaw_rad - yaw + math.pi) % (2 * math.pi) - math.pi
+        f.yaw_rate_cmd_rad_s[row] = float(np.clip(OFFBOARD_YAW_GAIN * err, -max_rate, max_rate))
+    else:
+        f.yaw_rate_cmd_rad_s[row] = 0.0
+
+
+def offboard_lost(ctx: StepContext, ent: int, row: int, nav: NavRuntime, params: FlightParams) -> None:
+    """The OFFBOARD stream lapsed (COM_OF_LOSS_T): COM_OBL_RC_ACT's failsafe (0, 1, 2, 5 hold; 3 return;
+    4 land; 6 terminate; 7 disarm, when on the ground, else hold)."""
+    f = ctx.fleet
+    action = int(params["COM_OBL_RC_ACT"])
+    nav.offboard = None
+    name = _name(ent)
+    on_ground = f.landed_state[row] == LandedState.ON_GROUND
+    what = {3: "return", 4: "land", 6: "terminate", 7: "disarm"}.get(action, "hold")
+    if what == "disarm" and not on_ground:
+        what = "hold"
+    if what == "return" and on_ground:
+        what = "hold"
+    ctx.services.note(ctx.sim_time_s, name, f"failsafe: offboard setpoints lost for {params['COM_OF_LOSS_T']:g} s "
+                                            f"(COM_OF_LOSS_T): {what} (COM_OBL_RC_ACT {action})")
+    if what == "return":
+        start_rtl(ctx, ent, row)
+    elif what == "land":
+        start_land(ctx, ent, row, None)
+    elif what in ("terminate", "disarm"):
+        disarm(ctx, ent, row, f"offboard loss failsafe ({what})")
+    else:
+        hold(ctx, ent, row)
 
 
 # -- land detector ---------------------------------------------------------------------------
@@ -318,6 +396,11 @@ class NavigatorSystem(esper.Processor):
                 continue
             if nav.mode:
                 self._advance(ctx, ent, row, nav, params)
+            elif f.nav_state[row] == NavState.OFFBOARD and nav.offboard is not None:
+                if offboard_fresh(nav, params, t):
+                    fly_offboard(ctx, ent, row, nav, params, new=False)
+                else:
+                    offboard_lost(ctx, ent, row, nav, params)
             self._auto_disarm(ctx, ent, row, nav, params)
 
     def _advance(self, ctx: StepContext, ent: int, row: int, nav: NavRuntime, params: FlightParams) -> None:
@@ -359,5 +442,6 @@ class NavigatorSystem(esper.Processor):
                 disarm(ctx, ent, row, f"armed {delay:g} s without taking off (COM_DISARM_PRFLT)")
 
 
-__all__ = ["LandDetectorSystem", "NavigatorSystem", "disarm", "ensure_all_drones", "ensure_nav", "hold",
+__all__ = ["LandDetectorSystem", "NavigatorSystem", "disarm", "ensure_all_drones", "ensure_nav", "fly_offboard",
+           "hold", "offboard_fresh", "offboard_lost",
            "land_route", "rtl_destination", "start_land", "start_rtl", "start_takeoff"]
