@@ -221,3 +221,39 @@ def test_a_refused_command_is_acked_temporarily_rejected_and_its_reason_arrives_
     text = wait_for(sim, c, "STATUSTEXT", lambda m: result.text[:20] in m.text)       # 50-char chunks
     assert text is not None and text.severity == 4
     assert sim.fleet.flight_mode[sim.row("d1")] == 0
+
+
+def test_message_requests_intervals_ping_and_timesync_are_answered_per_link(rig):
+    sim, api, gcs, _ = rig
+    c = api[0]
+    assert wait_for(sim, c, "HEARTBEAT") is not None
+    # REQUEST_MESSAGE AUTOPILOT_VERSION (MAVSDK at connect): ACK and the version with PX4's capabilities
+    c.command_long(512, 148.0)
+    assert wait_for(sim, c, "COMMAND_ACK", lambda m: m.command == 512).result == MAV_RESULT_ACCEPTED
+    ver = wait_for(sim, c, "AUTOPILOT_VERSION")
+    assert ver is not None and ver.capabilities == 57567 and ver.flight_sw_version == 0x010F00FF and ver.uid == 1
+    c.command_long(512, 242.0)                                          # HOME_POSITION on request
+    assert wait_for(sim, c, "COMMAND_ACK", lambda m: m.command == 512).result == MAV_RESULT_ACCEPTED
+    assert wait_for(sim, c, "HOME_POSITION") is not None
+    c.command_long(512, 395.0)                                          # a message we never produce
+    assert wait_for(sim, c, "COMMAND_ACK", lambda m: m.command == 512).result == MAV_RESULT_UNSUPPORTED
+    # SET_MESSAGE_INTERVAL ATTITUDE off on the API link: no more ATTITUDE there, the GCS link keeps it
+    c.command_long(511, 30.0, -1.0)
+    assert wait_for(sim, c, "COMMAND_ACK", lambda m: m.command == 511).result == MAV_RESULT_ACCEPTED
+    sim.step(24)
+    sim.flush_transports()
+    c.drain()
+    gcs.drain()
+    sim.step(240)
+    sim.flush_transports()
+    c.poll()
+    assert c.take("ATTITUDE") is None and wait_for(sim, gcs, "ATTITUDE", lambda m: m.get_srcSystem() == 1)
+    c.command_long(511, 9999.0, 1e5)                                    # not a stream of ours
+    assert wait_for(sim, c, "COMMAND_ACK", lambda m: m.command == 511).result == MAV_RESULT_DENIED
+    # PING and TIMESYNC requests are answered with the sender's values and sim time
+    c.send(mavlink2.MAVLink_ping_message(123456, 77, 0, 0))
+    pong = wait_for(sim, c, "PING", lambda m: m.seq == 77)
+    assert pong is not None and pong.time_usec == 123456 and pong.target_system == 245
+    c.send(mavlink2.MAVLink_timesync_message(0, 987654321))
+    ts = wait_for(sim, c, "TIMESYNC", lambda m: m.ts1 == 987654321)
+    assert ts is not None and 0 < ts.tc1 <= sim.sim_time_s * 1e9
