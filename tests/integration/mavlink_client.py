@@ -35,13 +35,14 @@ def port_block(n: int, rng: random.Random | None = None) -> int:
     raise RuntimeError("no free block of UDP ports")
 
 
-def world_text(ports: dict[str, int], n_drones: int = 2, signing: str = "") -> str:
+def world_text(ports: dict[str, int], n_drones: int = 2, signing: str = "", vehicle_extra: str = "") -> str:
     """A flat world with ``n_drones`` drones on the ground, each with a ``mavlink`` component."""
     lines = []
     for i in range(n_drones):
         sign = f", signing: {signing}" if signing else ""
         lines.append(
             f"  - {{name: d{i + 1}, type: quadrotor, preset: small, pose: {{position_m: [{5 * i}, 0, 0.2]}}, "
+            f"{vehicle_extra}"
             f"components: {{mavlink: {{instance: {i}, api_local_base: {ports['api_local']}, "
             f"api_remote_base: {ports['api_remote']}, gcs_local_base: {ports['gcs_local']}, "
             f"gcs_remote: {ports['gcs_remote']}{sign}}}}}}}")

@@ -257,3 +257,22 @@ def test_message_requests_intervals_ping_and_timesync_are_answered_per_link(rig)
     c.send(mavlink2.MAVLink_timesync_message(0, 987654321))
     ts = wait_for(sim, c, "TIMESYNC", lambda m: m.ts1 == 987654321)
     assert ts is not None and 0 < ts.tc1 <= sim.sim_time_s * 1e9
+
+
+def test_highres_imu_is_the_imu_sample_in_frd_gravity_minus_z_at_rest():
+    ports = free_ports(1)
+    sim = Simulation(load_world_text(world_text(ports, 1, vehicle_extra="sensors: [imu], ")))
+    c = Client(ports["api_remote"], ports["api_local"])
+    try:
+        # GIVEN a drone with an IMU resting on the ground
+        assert wait_for(sim, c, "EXTENDED_SYS_STATE", lambda m: m.landed_state == 1) is not None
+        sim.step(120)
+        sim.flush_transports()
+        c.drain()
+        # WHEN its HIGHRES_IMU arrives THEN the specific force points up = -z in FRD, about 1 g
+        m = wait_for(sim, c, "HIGHRES_IMU")
+        assert m is not None and m.zacc == pytest.approx(-9.81, abs=0.3)
+        assert abs(m.xacc) < 0.3 and abs(m.yacc) < 0.3 and abs(m.zgyro) < 0.05
+    finally:
+        c.close()
+        sim.close()
