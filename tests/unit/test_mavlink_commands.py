@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
+from unetyemu_ecs import load_world_text
 from unetyemu_ecs.geodesy import GeodeticOrigin, enu_to_geodetic
 from unetyemu_ecs.systems.flight_state import NavState
 from unetyemu_ecs.transport import bus
@@ -17,6 +18,7 @@ from unetyemu_ecs.transport.mavlink.component import MavlinkEndpoint
 from unetyemu_ecs.transport.mavlink.endpoint import DroneEndpoint
 
 ORIGIN = GeodeticOrigin(47.397742, 8.545594, 488.0)
+LAYOUT = load_world_text("world: {name: t}\nscene: {generator: none, ground_size_m: 400}\n").layout   # +-200 m
 TX = mavlink2.MAVLink(None, 245, 190)
 RX = mavlink2.MAVLink(None)
 
@@ -34,7 +36,7 @@ def snapshot(pos=(10.0, 20.0, 5.0)) -> Snapshot:
 @pytest.fixture
 def ep():
     inbox = bus.Inbox()
-    e = DroneEndpoint("d1", MavlinkEndpoint(instance=0), ORIGIN, None, inbox.submit, 1 / 240, None, None)
+    e = DroneEndpoint("d1", MavlinkEndpoint(instance=0), ORIGIN, LAYOUT, inbox.submit, 1 / 240, None, None)
     e.on_snapshot(snapshot((10.0, 20.0, 0.1)), 0)          # local origin: where the drone started
     e.on_snapshot(snapshot(), 0)
     e.inbox = inbox
@@ -74,6 +76,15 @@ def test_nan_setpoints_and_out_of_range_sticks_are_dropped(ep):
                                                                       math.nan, 3, -2, 0, 0, 0, 0, 0, 0, 0, 0))
     handle(ep, mavlink2.MAVLink_manual_control_message(1, 0, 0, 1500, 0, 0))
     assert submitted(ep) == [] and ep.unhandled_messages == 2
+    # a position outside the world (1 km north) goes through the project's offboard check: refused
+    handle(ep, mavlink2.MAVLink_set_position_target_local_ned_message(0, 1, 1, 1, 0b1001_1111_1000,
+                                                                      1000, 0, -2, 0, 0, 0, 0, 0, 0, 0, 0))
+    assert submitted(ep) == [] and ep.setpoints_rejected == 1
+    # position with velocity feed-forward (MAVSDK set_position_velocity_ned): the position is flown
+    handle(ep, mavlink2.MAVLink_set_position_target_local_ned_message(0, 1, 1, 1, 0b1001_1100_0000,
+                                                                      5, 3, -2, 1, 1, 0, 0, 0, 0, 0, 0))
+    (sp,) = submitted(ep)
+    assert sp.pos_enu_m == pytest.approx((13.0, 25.0, 2.1)) and sp.vel_enu_m_s is None
     handle(ep, mavlink2.MAVLink_manual_control_message(1, 500, -250, 500, 1000, 0))
     (mc,) = submitted(ep)
     assert (mc.pitch, mc.roll, mc.throttle, mc.yaw) == (0.5, -0.25, 0.5, 1.0)

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
+from unetyemu_ecs import load_world_text
 from unetyemu_ecs.geodesy import GeodeticOrigin
 from unetyemu_ecs.transport import bus
 from unetyemu_ecs.transport.api import Snapshot
@@ -19,6 +20,7 @@ from unetyemu_ecs.transport.mavlink.component import MavlinkEndpoint
 from unetyemu_ecs.transport.mavlink.endpoint import DroneEndpoint
 
 ORIGIN = GeodeticOrigin(47.397742, 8.545594, 488.0)
+LAYOUT = load_world_text("world: {name: t}\nscene: {generator: none, ground_size_m: 400}\n").layout   # +-200 m
 CONSUMED = (mavlink2.MAVLink_command_long_message, mavlink2.MAVLink_command_int_message,
             mavlink2.MAVLink_param_set_message, mavlink2.MAVLink_param_request_read_message,
             mavlink2.MAVLink_param_request_list_message, mavlink2.MAVLink_set_mode_message,
@@ -62,7 +64,7 @@ def random_message(rng: random.Random):
 def test_ten_thousand_random_and_mutated_datagrams_never_break_a_handler():
     rng = random.Random(13)
     inbox = bus.Inbox()
-    ep = DroneEndpoint("d1", MavlinkEndpoint(instance=0), ORIGIN, None, inbox.submit, 1 / 240, None, None)
+    ep = DroneEndpoint("d1", MavlinkEndpoint(instance=0), ORIGIN, LAYOUT, inbox.submit, 1 / 240, None, None)
     arrays = {"pos_enu_m": np.array([[1.0, 2.0, 3.0]]), "quat_enu_flu_xyzw": np.array([[0.0, 0.0, 0.0, 1.0]])}
     ep.on_snapshot(Snapshot(1, 1.0, 1 / 240, ("d1",), ("quadrotor",), arrays, (), [], 0, [], 0), 0)
     tx = mavlink2.MAVLink(None, 245, 190)

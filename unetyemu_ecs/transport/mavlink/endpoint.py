@@ -17,7 +17,8 @@ from typing import Any
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
 
-from ...command_checks import check_in_world
+from ...command_checks import (check_change_speed, check_in_world, check_land_xy, check_mission_step,
+                               check_offboard_setpoint, check_position, check_set_target, check_takeoff)
 from ...frames import frd_to_flu, ned_to_enu, yaw_ned_to_enu_rad
 from ...geodesy import GeodeticOrigin, enu_to_geodetic, geodetic_to_enu
 from ...navigation.params import PARAM_BY_NAME, PX4_PARAMS, check_param, default_values
@@ -81,6 +82,14 @@ def decode_param(raw: float, is_int: bool) -> float:
     return float(raw)
 
 
+def _yaw_enu_deg(yaw_ned_deg: float | None) -> float | None:
+    """A MAVLink heading (deg, NED: 0 north, clockwise) as degrees ENU (0 east, counter-clockwise) in (-180, 180]."""
+    if yaw_ned_deg is None:
+        return None
+    enu = math.degrees(float(yaw_ned_to_enu_rad(math.radians(yaw_ned_deg))))
+    return -((-enu + 180.0) % 360.0 - 180.0)
+
+
 def _finite(*values: float) -> bool:
     return all(isinstance(v, (int, float)) and math.isfinite(v) for v in values)
 
@@ -136,6 +145,7 @@ class DroneEndpoint:
         self.statustext_id = 0
         self.commands = {"accepted": 0, "rejected": 0, "unsupported": 0, "denied": 0, "expired": 0}
         self.unhandled_messages = 0
+        self.setpoints_rejected = 0
         self.missions = None
         self.mission_ids: set[int] = set()
         if MissionService is not None:
@@ -255,7 +265,7 @@ class DroneEndpoint:
                 return                   # a retry while the first one is pending: ACK when its result comes
         try:
             command = self.command_for(cmd, p, link, addr, src)
-        except Denied as exc:
+        except (Denied, ValueError) as exc:     # ValueError: a command_checks refusal
             self.ack(link, addr, src, cmd, px4.DENIED, str(exc))
             return
         if command is None:
@@ -328,13 +338,13 @@ class DroneEndpoint:
                 alt = float(p[6] - self.origin.alt_m)
                 if not 0.0 < alt <= MAX_Z_M:
                     raise Denied(f"takeoff altitude {p[6]:.1f} m AMSL is outside the world")
-            yaw_rad = None if yaw is None else float(yaw_ned_to_enu_rad(math.radians(yaw)))
+            alt, yaw_rad = check_takeoff(v, alt, _yaw_enu_deg(yaw))
             return bus.Takeoff(v, alt, yaw_rad, **mk)
         if cmd == CMD_LAND:
             if math.isnan(p[4]) or math.isnan(p[5]) or (p[4] == 0 and p[5] == 0):
                 return bus.Land(v, None, **mk)
             x, y, _ = self._enu(p[4], p[5], math.nan)
-            return bus.Land(v, (x, y), **mk)
+            return bus.Land(v, check_land_xy(v, self.layout, (x, y)), **mk)
         if cmd == CMD_RTL:
             return bus.ReturnToLaunch(v, **mk)
         if cmd == CMD_LOITER_UNLIM:
@@ -346,8 +356,8 @@ class DroneEndpoint:
             yaw = None if math.isnan(p[3]) else p[3]
             if yaw is not None and not (_finite(yaw) and -360.0 <= yaw <= 360.0):
                 raise Denied(f"yaw {p[3]} deg out of range")
-            pos = self._enu(p[4], p[5], p[6])
-            yaw_rad = None if yaw is None else float(yaw_ned_to_enu_rad(math.radians(yaw)))
+            x, y, z = self._enu(p[4], p[5], p[6])
+            pos, yaw_rad, speed = check_set_target(v, "quadrotor", self.layout, x, y, z, _yaw_enu_deg(yaw), speed)
             return bus.SetTarget(v, pos, yaw_rad, speed, **mk)
         if cmd == CMD_ORBIT:
             radius = p[0]
@@ -357,21 +367,20 @@ class DroneEndpoint:
             behaviour = 0 if math.isnan(p[2]) else int(p[2])
             if not 0 <= behaviour <= 4:
                 raise Denied(f"orbit yaw behaviour {p[2]} unknown")
-            center = self._enu(p[4], p[5], p[6])
+            center = check_position(f"orbit({v!r})", self.layout, self._enu(p[4], p[5], p[6]))
             return bus.Orbit(v, center, float(radius), float(abs(speed)), behaviour, **mk)
         if cmd == CMD_DO_CHANGE_SPEED:
             which = {0: "ground", 1: "ground", 2: "climb", 3: "descent"}.get(int(p[0]) if _finite(p[0]) else -1)
             if which is None:
                 raise Denied(f"speed type {p[0]} unknown")
-            if not (_finite(p[1]) and 0.0 < p[1] <= MAX_SPEED_M_S):
-                raise Denied(f"speed {p[1]} m/s out of range (0, {MAX_SPEED_M_S:g}]")
-            return bus.ChangeSpeed(v, which, float(p[1]), **mk)
+            which, speed = check_change_speed(v, which, float(p[1]))
+            return bus.ChangeSpeed(v, which, speed, **mk)
         if cmd == CMD_DO_SET_HOME:
             if p[0] == 1.0:
                 return bus.SetHome(v, None, **mk)
             if math.isnan(p[4]) or math.isnan(p[5]):
                 raise Denied("DO_SET_HOME needs param1 = 1 or a latitude/longitude")
-            return bus.SetHome(v, self._enu(p[4], p[5], p[6]), **mk)
+            return bus.SetHome(v, check_position(f"set_home({v!r})", self.layout, self._enu(p[4], p[5], p[6])), **mk)
         if cmd == CMD_MISSION_START:
             first = 0 if math.isnan(p[0]) else p[0]
             if not (_finite(first) and first >= 0 and first == int(first)):
@@ -379,14 +388,14 @@ class DroneEndpoint:
             step = self.step_of_seq(int(first))
             if step is None and first != 0:
                 raise Denied(f"the uploaded mission has no item {int(first)}")
-            return bus.StartMission(v, step or 0, **mk)        # no mission at all: the simulation refuses
+            return bus.StartMission(v, check_mission_step(v, step or 0), **mk)        # no mission at all: the simulation refuses
         if cmd == CMD_DO_SET_MISSION_CURRENT:
             if not (_finite(p[0]) and p[0] >= 0 and p[0] == int(p[0])):
                 raise Denied(f"mission item {p[0]} must be a whole number >= 0")
             step = self.step_of_seq(int(p[0]))
             if step is None:
                 raise Denied(f"the uploaded mission has no item {int(p[0])}")
-            return bus.SetMissionCurrent(v, step, **mk)
+            return bus.SetMissionCurrent(v, check_mission_step(v, step), **mk)
         if cmd == CMD_DO_PAUSE_CONTINUE:
             if p[0] not in (0.0, 1.0):
                 raise Denied("param1 must be 0 (pause) or 1 (continue)")
@@ -474,10 +483,7 @@ class DroneEndpoint:
             yaw = float(yaw_ned_to_enu_rad(msg.yaw))
         if not mask & 0x800 and math.isfinite(msg.yaw_rate):
             yaw_rate = -float(msg.yaw_rate)
-        if pos is None and vel is None and vel_body is None and yaw is None and yaw_rate is None:
-            self.unhandled_messages += 1
-            return
-        self.submit(bus.OffboardSetpoint(self.vehicle, pos, vel, vel_body, yaw, yaw_rate, source="mavlink"))
+        self.submit_setpoint(pos, vel, vel_body, yaw, yaw_rate)
 
     def on_position_target_global(self, msg: Any) -> None:
         mask, frame = int(msg.type_mask), int(msg.coordinate_frame)
@@ -502,7 +508,22 @@ class DroneEndpoint:
             yaw = float(yaw_ned_to_enu_rad(msg.yaw))
         if not mask & 0x800 and math.isfinite(msg.yaw_rate):
             yaw_rate = -float(msg.yaw_rate)
-        self.submit(bus.OffboardSetpoint(self.vehicle, pos, vel, None, yaw, yaw_rate, source="mavlink"))
+        self.submit_setpoint(pos, vel, None, yaw, yaw_rate)
+
+    def submit_setpoint(self, pos: Any, vel: Any, vel_body: Any, yaw: float | None, yaw_rate: float | None) -> None:
+        """One OFFBOARD setpoint through the project's checks. PX4 takes a velocity with a position as
+        feed-forward and a yaw with a yaw rate: here the position, and the yaw, win."""
+        if pos is not None:
+            vel = vel_body = None
+        if yaw is not None:
+            yaw_rate = None
+        try:
+            parts = check_offboard_setpoint(self.vehicle, self.layout, pos, vel, vel_body,
+                                            None if yaw is None else math.degrees(yaw), yaw_rate)
+        except ValueError:
+            self.setpoints_rejected += 1
+            return
+        self.submit(bus.OffboardSetpoint(self.vehicle, *parts, source="mavlink"))
 
     def on_manual_control(self, msg: Any) -> None:
         axes = (msg.x, msg.y, msg.z, msg.r)
@@ -718,6 +739,7 @@ class DroneEndpoint:
         out: dict[str, Any] = {link.name: link.counters() for link in self.links}
         out["commands"] = dict(self.commands)
         out["unhandled_messages"] = self.unhandled_messages
+        out["setpoints_rejected"] = self.setpoints_rejected
         out["system_id"] = self.sysid
         out["ports"] = {"api": [self.cfg.api_local_port, self.cfg.api_remote_port],
                         "gcs": [self.cfg.gcs_local_port, self.cfg.gcs_remote]}
