@@ -31,8 +31,6 @@ MISSION_STATES = {"stored": MissionState.STORED, "running": MissionState.RUNNING
                   "completed": MissionState.COMPLETED, "failed": MissionState.FAILED,
                   "cancelled": MissionState.CANCELLED}
 
-LANDED_SPEED_M_S = 0.25        # touching something and slower than this ...
-LANDED_HOLD_S = 0.5            # ... for this long counts as landed
 SETTLED_SPEED_M_S = 0.5        # a step that ends "at" a point also needs the drone slower than this
 GRAB_CLEARANCE_M = 0.10        # hover gap between the airframe's bottom and the package top when grabbing
 GRAB_TOLERANCE_M = 0.12        # position error allowed before grabbing
@@ -178,7 +176,7 @@ class MissionSystem(esper.Processor):
         elif step.type in ("land", "deliver"):
             if step.type == "deliver" and f.payload_kg[row] <= 0.0:
                 return "nothing_to_deliver"
-            if _landed(ctx, ent, row, s, need_hold=False) and f.flight_mode[row] == FlightMode.DISARMED:
+            if _on_ground(ctx, row) and f.flight_mode[row] == FlightMode.DISARMED:
                 s["landed"] = True
             else:
                 self._begin_landing(ctx, ent, row, rt, step, lim)
@@ -277,7 +275,7 @@ class MissionSystem(esper.Processor):
         if step.type in ("takeoff", "cruise"):
             return "done" if f.arrived[row] and speed < SETTLED_SPEED_M_S else None
         if step.type == "land":
-            if s.get("landed") or _landed(ctx, ent, row, s):
+            if s.get("landed") or _on_ground(ctx, row):
                 f.flight_mode[row] = FlightMode.DISARMED
                 set_route(f, row, None)
                 return "done"
@@ -285,7 +283,7 @@ class MissionSystem(esper.Processor):
         if step.type == "deliver":
             sub = s.get("sub", "landing")
             if sub == "landing":
-                if s.get("landed") or _landed(ctx, ent, row, s):
+                if s.get("landed") or _on_ground(ctx, row):
                     f.flight_mode[row] = FlightMode.DISARMED
                     set_route(f, row, None)
                     f.payload_request[row] = PayloadRequest.RELEASE
@@ -318,7 +316,7 @@ class MissionSystem(esper.Processor):
             return "no_package_in_reach"
         if step.type == "recharge":
             if s.get("landing") and not s.get("landed"):
-                if _landed(ctx, ent, row, s):
+                if _on_ground(ctx, row):
                     s["landed"] = True
                     f.flight_mode[row] = FlightMode.DISARMED
                     set_route(f, row, None)
@@ -356,17 +354,12 @@ class EmergencyLandingSystem(esper.Processor):
     phase = Phase.MISSION
     order = 10
 
-    def __init__(self) -> None:
-        self._scratch: dict[int, dict[str, Any]] = {}
-
     def process(self, ctx: StepContext) -> None:
         for ent, (slot, _) in esper.get_components(FleetSlot, _EmergencyLanding):
-            s = self._scratch.setdefault(ent, {})
-            if _landed(ctx, ent, slot.row, s):
+            if _on_ground(ctx, slot.row):
                 ctx.fleet.flight_mode[slot.row] = FlightMode.DISARMED
                 set_route(ctx.fleet, slot.row, None)
                 esper.remove_component(ent, _EmergencyLanding)
-                self._scratch.pop(ent, None)
 
 
 # -- helpers -----------------------------------------------------------------------------------
@@ -407,24 +400,7 @@ def _carried_height(ctx: StepContext, row: int) -> float:
     return float(2.0 * esper.component_for_entity(package, RigidBody).half_extents_m[2])
 
 
-def _landed(ctx: StepContext, ent: int, row: int, scratch: dict[str, Any], need_hold: bool = True) -> bool:
-    """True once the drone (or what it carries) has touched something and stayed slow for LANDED_HOLD_S."""
-    f = ctx.fleet
-    body = esper.component_for_entity(ent, RigidBody).body_id
-    touching = ctx.physics.touching(body)
-    carried = _carried_body(ctx, row)
-    if carried is not None:
-        touching |= ctx.physics.touching(carried)
-        touching -= {body, carried}
-    slow = float(np.linalg.norm(f.vel_enu_m_s[row])) < LANDED_SPEED_M_S
-    if touching and slow:
-        since = scratch.setdefault("touch_since_s", ctx.sim_time_s)
-        return (not need_hold) or ctx.sim_time_s - since >= LANDED_HOLD_S
-    scratch.pop("touch_since_s", None)
-    return False
-
-
-def _carried_body(ctx: StepContext, row: int) -> int | None:
-    """PyBullet body of the package drone ``row`` carries (``payload_entity``), None if none."""
-    package = int(ctx.fleet.payload_entity[row])
-    return None if package < 0 else esper.component_for_entity(package, RigidBody).body_id
+def _on_ground(ctx: StepContext, row: int) -> bool:
+    """The land detector (systems.navigator.LandDetectorSystem) says the drone rests on something: it, or the
+    package it carries, touches it and moves and turns slower than the LNDMC_* thresholds, for 0.3 s."""
+    return bool(ctx.fleet.landed_state[row] == LandedState.ON_GROUND)
