@@ -35,7 +35,7 @@ from .systems.state import StateReadbackSystem
 from .config.limits import MAX_DURATION_S
 from .mission import MissionSpec, mission_reference_issues, parse_mission
 from .navigation.commands_api import NavigationApi
-from .transport.api import CommandResult, Transport, TransportError, TransportOptions
+from .transport.api import CommandResult, Transport, TransportOptions
 from .transport.bus import Arm, CmdVel, Drive, DriveRoute, Inbox, LoadMission, SetTarget, Teleop
 from .transport.ros2.bridge import resolve_backend
 from .transport.snapshot import SnapshotBuilder, TransportSnapshotSystem
@@ -231,7 +231,8 @@ class Simulation(NavigationApi):
         """Wait until every transport has handled what the simulation offered it so far (published,
         sent): at most ``timeout_s`` seconds of wall time per transport; True when all had."""
         if not (is_real(timeout_s) and math.isfinite(timeout_s) and 0 <= timeout_s <= 600):
-            raise ValueError(f"flush_transports(): timeout_s must be a number of seconds in [0, 600], got {timeout_s!r}")
+            raise ValueError(f"flush_transports(): timeout_s must be a number of seconds in [0, 600], "
+                             f"got {timeout_s!r}")
         return all([t.flush(float(timeout_s)) for t in self._transports])
 
     @property
