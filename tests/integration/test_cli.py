@@ -91,6 +91,8 @@ def test_bad_cli_arguments_exit_2_with_a_reason(tmp_path):
     assert res.returncode == 2 and "expected a positive number or 'max'" in res.stderr
     res = unetyemu("run", str(WORLDS / "empty.yaml"), "--duration", "-3")
     assert res.returncode == 2 and "duration must be a positive" in res.stderr
+    res = unetyemu("run", str(WORLDS / "empty.yaml"), "--mavlink", "--mavlink-bind", "localhost:14540")
+    assert res.returncode == 2 and "'localhost:14540' is not an IP address" in res.stderr
 
 
 def test_plugins_lists_the_builtin_components():

@@ -186,6 +186,16 @@ def test_a_transport_that_cannot_start_leaves_no_open_simulation():
     assert set(esper.list_worlds()) == worlds_before
 
 
+def test_transport_options_are_checked_before_anything_is_built():
+    world = load_world_text(WORLD)
+    with pytest.raises(ValueError, match="mavlink must be True or False, got 'yes'"):
+        Simulation(world, mavlink="yes")
+    with pytest.raises(ValueError, match="mavlink_bind must be an IPv4 or IPv6 address .* got '999.1.1.1'"):
+        Simulation(world, mavlink_bind="999.1.1.1")
+    with pytest.raises(ValueError, match=r"ros2 must be one of off, auto, rclpy, dds, got 'zenoh'"):
+        Simulation(world, ros2="zenoh")
+
+
 def test_a_transport_returning_none_is_not_enabled_and_no_snapshot_is_built():
     reg = Registry.discover()
     reg.add(GROUP_TRANSPORTS, "off", TransportPlugin(create=lambda world, options: None))
