@@ -342,3 +342,46 @@ def check_offboard_setpoint(vehicle: str, layout: SceneLayout, pos: Sequence[flo
     return (checked_pos, velocity("vel_enu", vel_enu), velocity("vel_flu", vel_flu),
             None if yaw_deg is None else math.radians(yaw_deg),
             None if yaw_rate_rad_s is None else float(yaw_rate_rad_s))
+
+
+MAX_ORBIT_RADIUS_M = 1000.0       # a 1 km circle is already far beyond a multicopter orbit
+ORBIT_YAW_BEHAVIOURS = (0, 1, 2, 3, 5)   # MAVLink ORBIT_YAW_BEHAVIOUR values the navigator flies
+
+
+def check_manual_control(vehicle: str, pitch: float, roll: float, throttle: float, yaw: float
+                         ) -> tuple[float, float, float, float]:
+    """Sticks of a transmitter: pitch, roll, yaw in [-1, 1], throttle in [0, 1] (0.5 = centre)."""
+    values = (pitch, roll, throttle, yaw)
+    if not (all(is_real(v) and math.isfinite(v) for v in values) and -1 <= pitch <= 1 and -1 <= roll <= 1
+            and 0 <= throttle <= 1 and -1 <= yaw <= 1):
+        raise ValueError(f"manual_control({vehicle!r}): need pitch, roll, yaw in [-1, 1] and throttle in [0, 1], "
+                         f"got {values}")
+    return float(pitch), float(roll), float(throttle), float(yaw)
+
+
+def check_orbit(vehicle: str, layout: SceneLayout, center: Sequence[float], radius_m: float, speed_m_s: float,
+                yaw_behaviour: int = 0) -> tuple[tuple[float, float, float], float, float, int]:
+    """An orbit: centre as check_position; 0 < |radius| <= MAX_ORBIT_RADIUS_M (sign = direction); speed in
+    (0, MAX_CRUISE_SPEED_M_S]; yaw_behaviour one of ORBIT_YAW_BEHAVIOURS."""
+    what = f"orbit({vehicle!r})"
+    c = check_position(what, layout, center)
+    if not (is_real(radius_m) and math.isfinite(radius_m) and 0 < abs(radius_m) <= MAX_ORBIT_RADIUS_M):
+        raise ValueError(f"{what}: radius_m must be non-zero within +-{MAX_ORBIT_RADIUS_M:g} m, got {radius_m!r}")
+    if not (is_real(speed_m_s) and math.isfinite(speed_m_s) and 0 < speed_m_s <= MAX_CRUISE_SPEED_M_S):
+        raise ValueError(f"{what}: speed_m_s must be in (0, {MAX_CRUISE_SPEED_M_S:g}] m/s, got {speed_m_s!r}")
+    if yaw_behaviour not in ORBIT_YAW_BEHAVIOURS or isinstance(yaw_behaviour, bool):
+        raise ValueError(f"{what}: yaw_behaviour must be one of {ORBIT_YAW_BEHAVIOURS}, got {yaw_behaviour!r}")
+    return c, float(radius_m), float(speed_m_s), int(yaw_behaviour)
+
+
+def check_follow_target(vehicle: str, layout: SceneLayout, pos: Sequence[float], vel: Sequence[float] | None = None
+                        ) -> tuple[tuple[float, float, float], tuple[float, float, float] | None]:
+    """A target fix: position as check_position, velocity None or 3 numbers within +-MAX_CRUISE_SPEED_M_S."""
+    what = f"follow_target({vehicle!r})"
+    p = check_position(what, layout, pos)
+    if vel is None:
+        return p, None
+    v = tuple(vel)
+    if len(v) != 3 or not all(is_real(x) and math.isfinite(x) and abs(x) <= MAX_CRUISE_SPEED_M_S for x in v):
+        raise ValueError(f"{what}: vel must be 3 finite numbers within +-{MAX_CRUISE_SPEED_M_S:g} m/s, got {vel!r}")
+    return p, (float(v[0]), float(v[1]), float(v[2]))

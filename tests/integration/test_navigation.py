@@ -376,3 +376,160 @@ def test_offboard_stream_lapse_triggers_com_obl_rc_act_failsafe(action, nav_afte
     assert sim.sim_time_s - last == pytest.approx(1.0, abs=0.15)
     assert sim.nav_state("d1") == nav_after
     assert any("offboard setpoints lost" in text for _, _, text in sim.events)
+
+
+# -- parameters at run time, home, speed, termination, mission current ----------------------------
+def test_terminate_stops_the_motors_in_the_air_and_the_drone_falls():
+    sim = make_sim()
+    fly_up(sim, 4.0)
+    assert result_after(sim, sim.terminate("d1")).status == CommandStatus.ACCEPTED
+    assert not sim.is_armed("d1")
+    run_until(sim, lambda: sim.landed_state("d1") == "ON_GROUND", 5.0)
+    assert sim.position_enu_m("d1")[2] < 0.5
+
+
+def test_rtl_flies_to_a_home_set_by_command():
+    sim = make_sim()
+    sim.set_param("d1", "RTL_RETURN_ALT", 4.0)
+    sim.set_param("d1", "RTL_DESCEND_ALT", 4.0)
+    fly_up(sim, 4.0)
+    assert result_after(sim, sim.set_home("d1", (10.0, -5.0, 0.2))).status == CommandStatus.ACCEPTED
+    assert sim.home_enu_m("d1") == pytest.approx((10.0, -5.0, 0.2))
+    sim.return_to_launch("d1")
+    run_until(sim, lambda: sim.landed_state("d1") == "ON_GROUND", 40.0)
+    assert np.linalg.norm(sim.position_enu_m("d1")[:2] - (10.0, -5.0)) < 1.0
+
+
+def test_change_speed_slows_the_leg_being_flown():
+    sim = make_sim()
+    fly_up(sim, 3.0)
+    sim.set_target("d1", 60.0, 0.0, 3.0, speed=8.0)
+    sim.run(duration=5.0)
+    assert sim.velocity_enu_m_s("d1")[0] > 6.5
+    assert result_after(sim, sim.change_speed("d1", 2.0)).status == CommandStatus.ACCEPTED
+    sim.run(duration=4.0)
+    assert sim.velocity_enu_m_s("d1")[0] == pytest.approx(2.0, abs=0.3)
+
+
+def test_set_mission_current_skips_to_that_step():
+    sim = make_sim()
+    sim.store_mission("d1", '[{"type": "idle", "duration_s": 100}, {"type": "takeoff", "altitude_m": 2}]')
+    sim.step()
+    res = result_after(sim, sim.set_mission_current("d1", 5))
+    assert res.status == CommandStatus.REJECTED_INVALID and "does not exist" in res.text
+    assert result_after(sim, sim.set_mission_current("d1", 1)).status == CommandStatus.ACCEPTED
+    sim.set_armed("d1")
+    sim.start_mission("d1", 1)
+    run_until(sim, lambda: sim.mission_state("d1") == "COMPLETED", 10.0)
+    assert sim.position_enu_m("d1")[2] > 1.5
+
+
+def test_gripper_grabs_the_package_in_reach_and_releases_it():
+    sim = Simulation(load_world_text(flat_world(
+        drone("d1"), packages="  - {name: parcel, mass_kg: 1.0, size_m: [0.4, 0.4, 0.3], "
+                              "pose: {pad: home, offset_m: [3.0, 0.0]}}")))
+    sim.run(duration=1.0)
+    res = result_after(sim, sim.gripper("d1", False))
+    assert (res.status, res.reason) == (CommandStatus.REJECTED_STATE, "empty")
+    fly_up(sim, 2.0)
+    pkg = sim.position_enu_m("parcel")
+    # hover just above the package (the mission's grab height: package top + 0.1 m + half the airframe)
+    sim.set_target("d1", pkg[0], pkg[1], pkg[2] + 0.15 + 0.1 + 0.06, speed=1.0)
+    sim.run(duration=12.0)
+    assert result_after(sim, sim.gripper("d1", True)).status == CommandStatus.ACCEPTED
+    sim.run(duration=0.5)
+    assert sim.fleet.payload_kg[sim.row("d1")] == 1.0
+    assert result_after(sim, sim.gripper("d1", False)).status == CommandStatus.ACCEPTED
+    sim.run(duration=0.5)
+    assert sim.fleet.payload_kg[sim.row("d1")] == 0.0
+
+
+# -- POSCTL / MANUAL, ORBIT, FOLLOW_TARGET, geofence -------------------------------------------------
+def sticks(sim: Simulation, seconds: float, pitch=0.0, roll=0.0, throttle=0.5, yaw=0.0) -> None:
+    for _ in range(round(seconds / 0.1)):
+        sim.manual_control("d1", pitch, roll, throttle, yaw)
+        sim.run(duration=0.1)
+
+
+def test_posctl_flies_the_sticks_holds_when_centred_and_fails_safe_when_they_stop():
+    sim = make_sim()
+    sim.set_param("d1", "NAV_RCL_ACT", 3)           # land when the sticks stay lost
+    sim.set_param("d1", "COM_FAIL_ACT_T", 1.0)
+    fly_up(sim, 3.0)
+    res = result_after(sim, sim.set_nav_mode("d1", "POSCTL"))
+    assert (res.status, res.reason) == (CommandStatus.REJECTED_STATE, "no_manual_control")
+    sticks(sim, 0.2)
+    assert result_after(sim, sim.set_nav_mode("d1", "POSCTL")).status == CommandStatus.ACCEPTED
+    # half forward stick: forward at half MPC_XY_VEL_MAX (6 m/s), capped by nothing else
+    sticks(sim, 4.0, pitch=0.25)
+    assert np.linalg.norm(sim.velocity_enu_m_s("d1")[:2]) == pytest.approx(3.0, abs=0.4)
+    # centred: it brakes and holds
+    sticks(sim, 4.0)
+    x = sim.position_enu_m("d1").copy()
+    sticks(sim, 1.0)
+    assert np.linalg.norm(sim.position_enu_m("d1") - x) < 0.2
+    # sticks lost: HOLD after COM_RC_LOSS_T, then NAV_RCL_ACT (land) after COM_FAIL_ACT_T
+    run_until(sim, lambda: sim.nav_state("d1") == "HOLD", 2.0, every_s=1 / 240)
+    run_until(sim, lambda: sim.nav_state("d1") == "LAND", 2.0, every_s=1 / 240)
+    assert any("manual control lost" in text for _, _, text in sim.events)
+
+
+def test_orbit_circles_the_centre_at_the_radius_facing_it():
+    sim = make_sim()
+    fly_up(sim, 5.0)
+    assert result_after(sim, sim.orbit("d1", (5.0, 0.0, 5.0), 5.0, 2.0)).status == CommandStatus.ACCEPTED
+    assert sim.nav_state("d1") == "ORBIT"
+    sim.run(duration=8.0)
+    angles, radii = [], []
+    for _ in range(40):
+        sim.run(duration=0.25)
+        p = sim.position_enu_m("d1")
+        radii.append(np.hypot(p[0] - 5.0, p[1]))
+        angles.append(np.arctan2(p[1], p[0] - 5.0))
+        to_centre = np.arctan2(-p[1], 5.0 - p[0])
+        assert abs((heading(sim) - to_centre + np.pi) % (2 * np.pi) - np.pi) < 0.3
+    assert np.mean(radii) == pytest.approx(5.0, abs=0.5)
+    swept = np.sum((np.diff(np.unwrap(angles))))
+    assert swept == pytest.approx(-2.0 / 5.0 * 10.0, rel=0.2)      # clockwise at 2 m/s on r = 5 m for 10 s
+
+
+def test_follow_target_keeps_behind_a_moving_target_at_flw_tgt_dst_and_ht():
+    sim = make_sim()
+    sim.set_param("d1", "FLW_TGT_HT", 8.0)
+    sim.set_param("d1", "FLW_TGT_DST", 5.0)
+    fly_up(sim, 8.0)
+    res = result_after(sim, sim.set_nav_mode("d1", "FOLLOW_TARGET"))
+    assert (res.status, res.reason) == (CommandStatus.REJECTED_STATE, "no_target")
+    target = np.array([0.0, 10.0, 0.0])
+    vel = np.array([2.0, 0.0, 0.0])
+    sim.follow_target_fix("d1", tuple(target), tuple(vel))
+    sim.step()
+    assert result_after(sim, sim.set_nav_mode("d1", "FOLLOW_TARGET")).status == CommandStatus.ACCEPTED
+    for _ in range(200):
+        target = target + vel * 0.1
+        sim.follow_target_fix("d1", tuple(target), tuple(vel))
+        sim.run(duration=0.1)
+    p = sim.position_enu_m("d1")
+    home_z = sim.home_enu_m("d1")[2]
+    assert p[:2] == pytest.approx(target[:2] - (5.0, 0.0), abs=1.0)       # 5 m behind (course east)
+    assert p[2] == pytest.approx(home_z + 8.0, abs=0.5)
+    assert sim.velocity_enu_m_s("d1")[0] == pytest.approx(2.0, abs=0.3)
+
+
+def test_geofence_breach_holds_and_arming_outside_is_refused():
+    from unetyemu_ecs.navigation.geofence import Geofence
+
+    sim = make_sim()
+    fly_up(sim, 3.0)
+    sim.set_geofence("d1", Geofence(inclusion_circles=((0.0, 0.0, 10.0),)))
+    sim.set_target("d1", 30.0, 0.0, 3.0)
+    run_until(sim, lambda: sim.nav_state("d1") == "HOLD", 15.0)
+    sim.run(duration=3.0)
+    assert 9.0 < np.hypot(*sim.position_enu_m("d1")[:2]) < 14.0
+    assert any("geofence breached" in text for _, _, text in sim.events)
+    # land outside, then arming there is refused
+    sim.set_param("d1", "COM_DISARM_LAND", 0.5)
+    sim.land("d1")
+    run_until(sim, lambda: not sim.is_armed("d1"), 20.0)
+    res = result_after(sim, sim.set_armed("d1"))
+    assert (res.status, res.reason) == (CommandStatus.REJECTED_STATE, "outside_fence")

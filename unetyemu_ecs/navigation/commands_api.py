@@ -17,9 +17,9 @@ import numpy as np
 
 from .. import command_checks as cc
 from ..systems.flight_state import LandedState, MissionState, NavState
-from ..transport.bus import (Arm, ChangeSpeed, Gripper, Land, OffboardSetpoint, PauseMission, ReturnToLaunch,
-                             SetHome, SetMissionCurrent, SetNavMode, SetParam, SetRallyPoints, StartMission,
-                             StoreMission, Takeoff, Terminate)
+from ..transport.bus import (Arm, ChangeSpeed, FollowTargetFix, Gripper, Land, ManualControl, OffboardSetpoint, Orbit,
+                             PauseMission, ReturnToLaunch, SetGeofence, SetHome, SetMissionCurrent, SetNavMode,
+                             SetParam, SetRallyPoints, StartMission, StoreMission, Takeoff, Terminate)
 from .params import PARAM_BY_NAME, FlightParams, FlightParamsSpec, params_from_spec
 
 
@@ -77,6 +77,38 @@ class NavigationApi:
         self._drone(name)
         return self.inbox.submit(OffboardSetpoint(name, *cc.check_offboard_setpoint(
             name, self.layout, pos, vel_enu, vel_flu, yaw_deg, yaw_rate_rad_s)))
+
+    def manual_control(self, name: str, pitch: float, roll: float, throttle: float, yaw: float) -> int:
+        """Transmitter sticks (MAVLink MANUAL_CONTROL): ``pitch`` forward, ``roll`` right, ``yaw`` clockwise
+        in [-1, 1], ``throttle`` in [0, 1] (0.5 = hold height). Flown in POSCTL (speeds) or MANUAL (tilt);
+        stream them: after COM_RC_LOSS_T without one the drone holds, COM_FAIL_ACT_T later NAV_RCL_ACT."""
+        self._drone(name)
+        return self.inbox.submit(ManualControl(name, *cc.check_manual_control(name, pitch, roll, throttle, yaw)))
+
+    def orbit(self, name: str, center: tuple[float, float, float], radius_m: float, speed_m_s: float = 1.0,
+              yaw_behaviour: int = 0) -> int:
+        """ORBIT: circle ENU ``center`` [m] at ``radius_m`` (> 0 clockwise seen from above) at ``speed_m_s``;
+        ``yaw_behaviour`` as MAVLink's ORBIT_YAW_BEHAVIOUR (0 face the centre, 1 initial heading, 2 and 5
+        uncontrolled, 3 along the circle)."""
+        self._drone(name)
+        return self.inbox.submit(Orbit(name, *cc.check_orbit(name, self.layout, center, radius_m, speed_m_s,
+                                                             yaw_behaviour)))
+
+    def follow_target_fix(self, name: str, pos: tuple[float, float, float],
+                          vel: tuple[float, float, float] | None = None) -> int:
+        """One fix of the target FOLLOW_TARGET follows (ENU position [m], velocity [m/s]); stream them."""
+        self._drone(name)
+        return self.inbox.submit(FollowTargetFix(name, *cc.check_follow_target(name, self.layout, pos, vel)))
+
+    def set_geofence(self, name: str, fence: Any) -> int:
+        """Replace the drone's geofence (a ``navigation.geofence.Geofence``; None: none). A breach triggers
+        GF_ACTION; arming outside it is refused (``outside_fence``)."""
+        from .geofence import Geofence
+
+        self._drone(name)
+        if fence is not None and not isinstance(fence, Geofence):
+            raise ValueError(f"set_geofence({name!r}): expected a Geofence or None, got {type(fence).__name__}")
+        return self.inbox.submit(SetGeofence(name, fence))
 
     def terminate(self, name: str) -> int:
         """Flight termination: motors off now, wherever the drone is."""

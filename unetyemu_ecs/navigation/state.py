@@ -31,6 +31,10 @@ class NavRuntime:
     rally_enu_m : rally points, ENU [m]; RTL goes to the closest of these and home
     speeds : ChangeSpeed overrides of the automatic modes, "ground" / "climb" / "descent" -> m/s
     offboard : the newest OFFBOARD setpoint (an OffboardSetpoint) and the sim time it arrived
+    manual : the newest ManualControl sticks and the sim time they arrived (POSCTL / MANUAL)
+    orbit : the Orbit command being flown (mode "orbit")
+    follow : the newest FollowTargetFix and its sim time; follow_sp_enu_m the filtered follow setpoint
+    fence : the geofence (navigation.geofence.Geofence, None: none); fence_ok whether the last check passed
     """
 
     mode: str = ""
@@ -45,6 +49,15 @@ class NavRuntime:
     speeds: dict[str, float] = field(default_factory=dict)
     offboard: Any = None
     offboard_s: float = -math.inf
+    manual: Any = None
+    manual_s: float = -math.inf
+    orbit: Any = None
+    follow: Any = None
+    follow_s: float = -math.inf
+    follow_sp_enu_m: np.ndarray | None = None
+    follow_course_rad: float = 0.0
+    fence: Any = None
+    fence_ok: bool = True
 
 
 __all__ = ["NavRuntime"]

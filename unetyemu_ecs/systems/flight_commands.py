@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import esper
 import numpy as np
 
@@ -11,15 +13,17 @@ from ..components.mission import MissionRuntime
 from ..navigation.state import NavRuntime
 from ..phases import Phase
 from ..transport.api import CommandStatus
-from ..transport.bus import (Arm, ChangeSpeed, CmdVel, Gripper, Land, LoadMission, OffboardSetpoint, PauseMission,
-                             ReturnToLaunch, SetHome, SetMissionCurrent, SetNavMode, SetParam, SetRallyPoints,
-                             SetTarget, StartMission, StoreMission, Takeoff, Teleop, Terminate)
+from ..transport.bus import (Arm, ChangeSpeed, CmdVel, FollowTargetFix, Gripper, Land, LoadMission, ManualControl,
+                             OffboardSetpoint, Orbit, PauseMission, ReturnToLaunch, SetGeofence, SetHome,
+                             SetMissionCurrent, SetNavMode, SetParam, SetRallyPoints, SetTarget, StartMission,
+                             StoreMission, Takeoff, Teleop, Terminate)
 from ..world import StepContext
 from .commands import Refusal, serve_commands, warn_if_obstructed
 from .flight_state import (FlightMode, LandedState, MissionState, NavState, PayloadRequest, PayloadResult, Route,
                            set_route)
-from .navigator import (disarm, ensure_all_drones, ensure_nav, fly_offboard, hold, offboard_fresh, start_land,
-                        start_rtl, start_takeoff)
+from .navigator import (disarm, ensure_all_drones, ensure_nav, fence_breach, fly_manual, fly_offboard, follow_fresh,
+                        hold, manual_fresh, offboard_fresh, start_follow, start_land, start_orbit, start_rtl,
+                        start_takeoff)
 
 
 class FlightCommandSystem(esper.Processor):
@@ -185,6 +189,10 @@ class FlightCommandSystem(esper.Processor):
             return _start_mission(ctx, ent, row, None)
         if mode == NavState.OFFBOARD:
             return self._to_offboard(ctx, ent, row)
+        if mode in (NavState.POSCTL, NavState.MANUAL):
+            return self._to_manual(ctx, ent, row, mode)
+        if mode == NavState.FOLLOW_TARGET:
+            return self._to_follow(ctx, ent, row)
         return Refusal(CommandStatus.REJECTED_INVALID, "unsupported",
                        f"navigation mode {mode.name} is not available through SetNavMode yet")
 
@@ -208,6 +216,68 @@ class FlightCommandSystem(esper.Processor):
         nav.offboard, nav.offboard_s = msg, ctx.sim_time_s
         if ctx.fleet.nav_state[row] == NavState.OFFBOARD and not nav.mode:
             fly_offboard(ctx, ent, row, nav, params, new=True)
+        return ""
+
+    def _to_manual(self, ctx: StepContext, ent: int, row: int, mode: NavState) -> str | Refusal:
+        """POSCTL / MANUAL need sticks (ManualControl) from the last COM_RC_LOSS_T seconds."""
+        nav, params = ensure_nav(ent)
+        if not manual_fresh(nav, params, ctx.sim_time_s):
+            return Refusal(CommandStatus.REJECTED_STATE, "no_manual_control",
+                           f"{mode.name} denied: no manual control within COM_RC_LOSS_T = "
+                           f"{params['COM_RC_LOSS_T']:g} s")
+        _pause_mission(ctx, ent, mode.name.lower())
+        _end_nav_mode(ent)
+        ctx.fleet.nav_state[row] = mode
+        fly_manual(ctx, row, nav, params)
+        return ""
+
+    def _on_ManualControl(self, ctx: StepContext, ent: int, row: int, msg: ManualControl) -> str | Refusal:
+        """Keep the newest sticks; fly them in POSCTL / MANUAL; sticks back after a loss restore the mode."""
+        f = ctx.fleet
+        nav, params = ensure_nav(ent)
+        nav.manual, nav.manual_s = msg, ctx.sim_time_s
+        if nav.mode == "rc_lost":
+            f.nav_state[row] = int(nav.phase)
+            _end_nav_mode(ent)
+            ctx.services.note(ctx.sim_time_s, msg.vehicle, "manual control regained")
+        if f.nav_state[row] in (NavState.POSCTL, NavState.MANUAL) and not nav.mode:
+            fly_manual(ctx, row, nav, params)
+        return ""
+
+    def _on_Orbit(self, ctx: StepContext, ent: int, row: int, msg: Orbit) -> str | Refusal:
+        f = ctx.fleet
+        if f.flight_mode[row] == FlightMode.DISARMED:
+            return Refusal(CommandStatus.REJECTED_STATE, "not_armed", "Orbit denied: the drone is disarmed")
+        if f.landed_state[row] == LandedState.ON_GROUND:
+            return Refusal(CommandStatus.REJECTED_STATE, "landed", "Orbit denied: take off first")
+        _pause_mission(ctx, ent, "orbit")
+        start_orbit(ctx, ent, row, msg)
+        return ""
+
+    def _on_FollowTargetFix(self, ctx: StepContext, ent: int, row: int, msg: FollowTargetFix) -> str | Refusal:
+        nav, _ = ensure_nav(ent)
+        nav.follow, nav.follow_s = msg, ctx.sim_time_s
+        if msg.vel_enu_m_s is not None and math.hypot(msg.vel_enu_m_s[0], msg.vel_enu_m_s[1]) > 0.5:
+            nav.follow_course_rad = math.atan2(msg.vel_enu_m_s[1], msg.vel_enu_m_s[0])
+        return ""
+
+    def _to_follow(self, ctx: StepContext, ent: int, row: int) -> str | Refusal:
+        f = ctx.fleet
+        nav, _ = ensure_nav(ent)
+        if f.flight_mode[row] == FlightMode.DISARMED:
+            return Refusal(CommandStatus.REJECTED_STATE, "not_armed", "Follow target denied: the drone is disarmed")
+        if f.landed_state[row] == LandedState.ON_GROUND:
+            return Refusal(CommandStatus.REJECTED_STATE, "landed", "Follow target denied: take off first")
+        if not follow_fresh(nav, ctx.sim_time_s):
+            return Refusal(CommandStatus.REJECTED_STATE, "no_target", "Follow target denied: no target fix received")
+        _pause_mission(ctx, ent, "follow target")
+        start_follow(ctx, ent, row)
+        return ""
+
+    def _on_SetGeofence(self, ctx: StepContext, ent: int, row: int, msg: SetGeofence) -> str | Refusal:
+        nav, _ = ensure_nav(ent)
+        nav.fence, nav.fence_ok = msg.fence, True
+        ctx.services.note(ctx.sim_time_s, msg.vehicle, "geofence cleared" if msg.fence is None else "geofence set")
         return ""
 
     def _to_hold(self, ctx: StepContext, ent: int, row: int) -> str | Refusal:
@@ -370,6 +440,10 @@ def arming_refusal(f, ent: int, row: int) -> Refusal | None:
             return Refusal(CommandStatus.REJECTED_STATE, "overweight",
                            f"Arming denied: payload {f.payload_kg[row]:.2f} kg exceeds {bay.max_payload_kg:g} kg")
         return Refusal(CommandStatus.REJECTED_STATE, "motors_disabled", "Arming denied: motors disabled")
+    nav, params = ensure_nav(ent)
+    why = fence_breach(f, row, nav, params)
+    if why:
+        return Refusal(CommandStatus.REJECTED_STATE, "outside_fence", f"Arming denied: {why}")
     if f.landed_state[row] not in (LandedState.ON_GROUND, LandedState.UNDEFINED):
         return Refusal(CommandStatus.REJECTED_STATE, "in_air",
                        "Arming denied: not on the ground (force it to arm in the air)")

@@ -92,6 +92,11 @@ def hold(ctx: StepContext, ent: int, row: int) -> None:
     f.nav_state[row] = NavState.HOLD
     if f.flight_mode[row] == FlightMode.DISARMED:
         return
+    brake_and_hold(f, row)
+
+
+def brake_and_hold(f: Any, row: int) -> None:
+    """AUTO on a route from here to where braking at BRAKE_ACC_M_S2 stops the drone: it stops and stays there."""
     f.flight_mode[row] = FlightMode.AUTO
     pos = f.pos_enu_m[row].copy()
     vel = f.vel_enu_m_s[row]
@@ -309,6 +314,228 @@ def offboard_lost(ctx: StepContext, ent: int, row: int, nav: NavRuntime, params:
         hold(ctx, ent, row)
 
 
+# -- POSCTL / MANUAL from ManualControl sticks ------------------------------------------------------
+STICK_DEADZONE = 0.05       # sticks within this of centre are centred (POSCTL then holds position)
+
+
+def manual_fresh(nav: NavRuntime, params: FlightParams, t: float) -> bool:
+    """Sticks (ManualControl) arrived within the last COM_RC_LOSS_T seconds."""
+    return nav.manual is not None and t - nav.manual_s <= params["COM_RC_LOSS_T"] + 1e-9
+
+
+def _set_flu_velocity(f: Any, row: int, v_enu: np.ndarray) -> float:
+    """VELOCITY path: world velocity ``v_enu`` turned into body FLU with the current heading; returns the heading."""
+    from ..frames import yaw_rad_from_quat_xyzw
+
+    yaw = float(yaw_rad_from_quat_xyzw(f.quat_enu_flu_xyzw[row]))
+    c, s_ = math.cos(yaw), math.sin(yaw)
+    f.vel_cmd_flu_m_s[row] = (c * v_enu[0] + s_ * v_enu[1], -s_ * v_enu[0] + c * v_enu[1], v_enu[2])
+    if f.flight_mode[row] != FlightMode.VELOCITY:
+        f.flight_mode[row] = FlightMode.VELOCITY
+        set_route(f, row, None)
+    return yaw
+
+
+def _yaw_rate_to(yaw_sp: float, yaw: float, params: FlightParams) -> float:
+    err = (yaw_sp - yaw + math.pi) % (2 * math.pi) - math.pi
+    max_rate = math.radians(params["MPC_YAWRAUTO_MAX"])
+    return float(np.clip(OFFBOARD_YAW_GAIN * err, -max_rate, max_rate))
+
+
+def fly_manual(ctx: StepContext, row: int, nav: NavRuntime, params: FlightParams) -> None:
+    """MANUAL: the sticks are the stabilizer's (throttle = climb rate, pitch/roll = tilt, yaw = turn rate).
+    POSCTL: pitch/roll command horizontal speed up to MPC_XY_VEL_MAX, throttle climb/descent at
+    MPC_Z_V_AUTO_UP/DN, yaw turn rate up to MPC_YAWRAUTO_MAX; centred sticks brake and hold position."""
+    f = ctx.fleet
+    mc = nav.manual
+    if f.flight_mode[row] == FlightMode.DISARMED or mc is None:
+        return
+    thr = 2.0 * mc.throttle - 1.0
+    if f.nav_state[row] == NavState.MANUAL:
+        f.flight_mode[row] = FlightMode.MANUAL
+        f.stick[row] = (thr, mc.pitch, mc.roll, -mc.yaw)
+        return
+    if max(abs(thr), abs(mc.pitch), abs(mc.roll), abs(mc.yaw)) < STICK_DEADZONE:
+        if f.flight_mode[row] != FlightMode.AUTO:
+            brake_and_hold(f, row)
+        return
+    vmax = params["MPC_XY_VEL_MAX"]
+    up = thr * (params["MPC_Z_V_AUTO_UP"] if thr >= 0.0 else params["MPC_Z_V_AUTO_DN"])
+    _set_flu_velocity(f, row, np.zeros(3))
+    f.vel_cmd_flu_m_s[row] = (mc.pitch * vmax, -mc.roll * vmax, up)
+    f.yaw_rate_cmd_rad_s[row] = -mc.yaw * math.radians(params["MPC_YAWRAUTO_MAX"])
+
+
+def manual_lost(ctx: StepContext, ent: int, row: int, nav: NavRuntime, params: FlightParams) -> None:
+    """Sticks lost for COM_RC_LOSS_T: HOLD now; NAV_RCL_ACT after COM_FAIL_ACT_T more (PX4's order)."""
+    f = ctx.fleet
+    was = int(f.nav_state[row])
+    ctx.services.note(ctx.sim_time_s, _name(ent), f"failsafe: manual control lost for {params['COM_RC_LOSS_T']:g} s "
+                                                  f"(COM_RC_LOSS_T): holding, NAV_RCL_ACT in "
+                                                  f"{params['COM_FAIL_ACT_T']:g} s")
+    hold(ctx, ent, row)
+    _set_mode(nav, "rc_lost", str(was), ctx.sim_time_s, None)
+
+
+def _rc_lost_action(ctx: StepContext, ent: int, row: int, nav: NavRuntime, params: FlightParams) -> None:
+    f = ctx.fleet
+    action = int(params["NAV_RCL_ACT"])
+    on_ground = f.landed_state[row] == LandedState.ON_GROUND
+    what = {2: "return", 3: "land", 5: "terminate", 6: "disarm"}.get(action, "hold")
+    if on_ground and what in ("return", "land"):
+        what = "hold"
+    ctx.services.note(ctx.sim_time_s, _name(ent), f"failsafe: manual control still lost: {what} "
+                                                  f"(NAV_RCL_ACT {action})")
+    _set_mode(nav, "", "", ctx.sim_time_s, None)
+    if what == "return":
+        start_rtl(ctx, ent, row)
+    elif what == "land":
+        start_land(ctx, ent, row, None)
+    elif what in ("terminate", "disarm"):
+        disarm(ctx, ent, row, f"manual control loss failsafe ({what})")
+
+
+# -- ORBIT -------------------------------------------------------------------------------------
+ORBIT_RADIAL_GAIN = 1.0     # [1/s] radius error -> radial speed
+Z_GAIN = 1.0                # [1/s] height error -> climb speed (orbit, follow target)
+
+
+def start_orbit(ctx: StepContext, ent: int, row: int, orbit: Any) -> None:
+    """ORBIT: circle ``orbit.center_enu_m`` at |radius| (> 0 clockwise seen from above) at ``speed_m_s``."""
+    from ..frames import yaw_rad_from_quat_xyzw
+
+    nav, _ = ensure_nav(ent)
+    nav.orbit = orbit
+    yaw0 = float(yaw_rad_from_quat_xyzw(ctx.fleet.quat_enu_flu_xyzw[row]))
+    _set_mode(nav, "orbit", "circle", ctx.sim_time_s, np.array([*orbit.center_enu_m[:2], yaw0]))
+    ctx.fleet.nav_state[row] = NavState.ORBIT
+    c = orbit.center_enu_m
+    ctx.services.note(ctx.sim_time_s, _name(ent), f"orbit around ({c[0]:.1f}, {c[1]:.1f}) at r = {orbit.radius_m:g} m")
+
+
+def fly_orbit(ctx: StepContext, row: int, nav: NavRuntime, params: FlightParams) -> None:
+    f = ctx.fleet
+    o = nav.orbit
+    c = np.asarray(o.center_enu_m, dtype=float)
+    pos = f.pos_enu_m[row]
+    rel = pos[:2] - c[:2]
+    r = float(np.hypot(*rel))
+    u = rel / r if r > 1e-3 else np.array([1.0, 0.0])
+    tangent = np.array([u[1], -u[0]]) if o.radius_m > 0 else np.array([-u[1], u[0]])
+    v_xy = o.speed_m_s * tangent + ORBIT_RADIAL_GAIN * (abs(o.radius_m) - r) * u
+    vz = float(np.clip(Z_GAIN * (c[2] - pos[2]), -params["MPC_Z_V_AUTO_DN"], params["MPC_Z_V_AUTO_UP"]))
+    yaw = _set_flu_velocity(f, row, np.array([v_xy[0], v_xy[1], vz]))
+    behaviour = int(o.yaw_behaviour)
+    if behaviour == 0:
+        f.yaw_rate_cmd_rad_s[row] = _yaw_rate_to(math.atan2(-u[1], -u[0]), yaw, params)
+    elif behaviour == 3:
+        f.yaw_rate_cmd_rad_s[row] = _yaw_rate_to(math.atan2(tangent[1], tangent[0]), yaw, params)
+    elif behaviour == 1:
+        f.yaw_rate_cmd_rad_s[row] = _yaw_rate_to(float(nav.goal_enu_m[2]), yaw, params)
+    else:
+        f.yaw_rate_cmd_rad_s[row] = 0.0
+
+
+# -- FOLLOW_TARGET -----------------------------------------------------------------------------
+FOLLOW_LOST_S = 2.0         # no target fix for this long: hold (a documented choice; PX4 keeps its estimate)
+FOLLOW_POS_GAIN = 0.8       # [1/s] follow-point error -> speed on top of the target's velocity
+
+
+def follow_fresh(nav: NavRuntime, t: float) -> bool:
+    return nav.follow is not None and t - nav.follow_s <= FOLLOW_LOST_S + 1e-9
+
+
+def start_follow(ctx: StepContext, ent: int, row: int) -> None:
+    nav, _ = ensure_nav(ent)
+    _set_mode(nav, "follow", "follow", ctx.sim_time_s, None)
+    nav.follow_sp_enu_m = None
+    ctx.fleet.nav_state[row] = NavState.FOLLOW_TARGET
+    ctx.services.note(ctx.sim_time_s, _name(ent), "following the target")
+
+
+def fly_follow(ctx: StepContext, row: int, nav: NavRuntime, params: FlightParams) -> None:
+    """Hold FLW_TGT_DST behind (FLW_TGT_FA clockwise from the target's course) at FLW_TGT_HT above home
+    (FLW_TGT_ALT_M 2: above the target), filtered by FLW_TGT_RS, at most FLW_TGT_MAX_VEL faster than the
+    target, facing it."""
+    f = ctx.fleet
+    t = ctx.sim_time_s
+    fix = nav.follow
+    tv = np.zeros(3) if fix.vel_enu_m_s is None else np.asarray(fix.vel_enu_m_s, dtype=float)
+    tp = np.asarray(fix.pos_enu_m, dtype=float) + tv * (t - nav.follow_s)
+    ang = nav.follow_course_rad - math.radians(params["FLW_TGT_FA"])
+    base_z = tp[2] if int(params["FLW_TGT_ALT_M"]) == 2 else (f.home_enu_m[row, 2] if f.home_set[row] else 0.0)
+    sp = np.array([tp[0] + params["FLW_TGT_DST"] * math.cos(ang), tp[1] + params["FLW_TGT_DST"] * math.sin(ang),
+                   base_z + params["FLW_TGT_HT"]])
+    if nav.follow_sp_enu_m is None:
+        nav.follow_sp_enu_m = sp
+    else:
+        alpha = 1.0 - params["FLW_TGT_RS"] ** (ctx.dt_s / 0.1)
+        nav.follow_sp_enu_m = nav.follow_sp_enu_m + alpha * (sp - nav.follow_sp_enu_m)
+    pos = f.pos_enu_m[row]
+    err = nav.follow_sp_enu_m - pos
+    extra = FOLLOW_POS_GAIN * err[:2]
+    norm = float(np.hypot(*extra))
+    if norm > params["FLW_TGT_MAX_VEL"] > 0.0:
+        extra *= params["FLW_TGT_MAX_VEL"] / norm
+    vz = float(np.clip(Z_GAIN * err[2], -params["MPC_Z_V_AUTO_DN"], params["MPC_Z_V_AUTO_UP"]))
+    yaw = _set_flu_velocity(f, row, np.array([tv[0] + extra[0], tv[1] + extra[1], vz]))
+    to_target = tp[:2] - pos[:2]
+    if np.hypot(*to_target) > 0.5:
+        f.yaw_rate_cmd_rad_s[row] = _yaw_rate_to(math.atan2(to_target[1], to_target[0]), yaw, params)
+    else:
+        f.yaw_rate_cmd_rad_s[row] = 0.0
+
+
+# -- geofence ----------------------------------------------------------------------------------
+def fence_breach(f: Any, row: int, nav: NavRuntime, params: FlightParams) -> str:
+    """Why the drone is outside its geofence (zones, GF_MAX_HOR_DIST, GF_MAX_VER_DIST from home), "" if inside."""
+    pos = f.pos_enu_m[row]
+    if nav.fence is not None and not nav.fence.empty and not nav.fence.contains(pos):
+        return "outside the fence zones"
+    if f.home_set[row]:
+        home = f.home_enu_m[row]
+        hor, ver = params["GF_MAX_HOR_DIST"], params["GF_MAX_VER_DIST"]
+        if hor > 0.0 and math.hypot(pos[0] - home[0], pos[1] - home[1]) > hor:
+            return f"more than GF_MAX_HOR_DIST = {hor:g} m from home"
+        if ver > 0.0 and pos[2] - home[2] > ver:
+            return f"more than GF_MAX_VER_DIST = {ver:g} m above home"
+    return ""
+
+
+def enforce_fence(ctx: StepContext, ent: int, row: int, nav: NavRuntime, params: FlightParams) -> None:
+    """On entering a breach: GF_ACTION (0 none, 1 warning, 2 hold, 3 return, 4 terminate, 5 land) and an event."""
+    f = ctx.fleet
+    why = fence_breach(f, row, nav, params)
+    if not why:
+        nav.fence_ok = True
+        return
+    if not nav.fence_ok:
+        return
+    nav.fence_ok = False
+    action = int(params["GF_ACTION"])
+    if action == 0:
+        return
+    what = {1: "warning", 2: "hold", 3: "return", 4: "terminate", 5: "land"}[action]
+    ctx.services.note(ctx.sim_time_s, _name(ent), f"geofence breached ({why}): {what} (GF_ACTION {action})")
+    _pause_running_mission(ctx, ent, row, "geofence")
+    if what == "hold":
+        hold(ctx, ent, row)
+    elif what == "return":
+        start_rtl(ctx, ent, row)
+    elif what == "land":
+        start_land(ctx, ent, row, None)
+    elif what == "terminate":
+        disarm(ctx, ent, row, "geofence breach: flight termination")
+
+
+def _pause_running_mission(ctx: StepContext, ent: int, row: int, why: str) -> None:
+    rt = esper.try_component(ent, MissionRuntime)
+    if rt is not None and rt.state == "running":
+        rt.state, rt.reason = "paused", why
+        ctx.fleet.charging[row] = False
+        ctx.fleet.mission_state[row] = MissionState.PAUSED
+
+
 # -- land detector ---------------------------------------------------------------------------
 class LandDetectorSystem(esper.Processor):
     """Landed state of every drone from contact and motion (PX4's multicopter land detector).
@@ -401,12 +628,33 @@ class NavigatorSystem(esper.Processor):
                     fly_offboard(ctx, ent, row, nav, params, new=False)
                 else:
                     offboard_lost(ctx, ent, row, nav, params)
+            elif f.nav_state[row] in (NavState.POSCTL, NavState.MANUAL) and nav.manual is not None:
+                if manual_fresh(nav, params, t):
+                    fly_manual(ctx, row, nav, params)
+                else:
+                    manual_lost(ctx, ent, row, nav, params)
+            if f.landed_state[row] != LandedState.ON_GROUND and f.flight_mode[row] != FlightMode.DISARMED:
+                enforce_fence(ctx, ent, row, nav, params)
             self._auto_disarm(ctx, ent, row, nav, params)
 
     def _advance(self, ctx: StepContext, ent: int, row: int, nav: NavRuntime, params: FlightParams) -> None:
         f = ctx.fleet
         t = ctx.sim_time_s
         name = _name(ent)
+        if nav.mode == "orbit":
+            fly_orbit(ctx, row, nav, params)
+            return
+        if nav.mode == "follow":
+            if follow_fresh(nav, t):
+                fly_follow(ctx, row, nav, params)
+            else:
+                ctx.services.note(t, name, f"follow target: no target fix for {FOLLOW_LOST_S:g} s: holding")
+                hold(ctx, ent, row)
+            return
+        if nav.mode == "rc_lost":
+            if t - nav.phase_started_s >= params["COM_FAIL_ACT_T"] - 1e-9:
+                _rc_lost_action(ctx, ent, row, nav, params)
+            return
         if nav.mode == "takeoff":
             if f.arrived[row] and abs(f.pos_enu_m[row, 2] - nav.goal_enu_m[2]) < TAKEOFF_DONE_M:
                 _set_mode(nav, "", "", t, None)
@@ -442,6 +690,7 @@ class NavigatorSystem(esper.Processor):
                 disarm(ctx, ent, row, f"armed {delay:g} s without taking off (COM_DISARM_PRFLT)")
 
 
-__all__ = ["LandDetectorSystem", "NavigatorSystem", "disarm", "ensure_all_drones", "ensure_nav", "fly_offboard",
-           "hold", "offboard_fresh", "offboard_lost",
-           "land_route", "rtl_destination", "start_land", "start_rtl", "start_takeoff"]
+__all__ = ["LandDetectorSystem", "NavigatorSystem", "brake_and_hold", "disarm", "enforce_fence", "ensure_all_drones",
+           "ensure_nav", "fence_breach", "fly_follow", "fly_manual", "fly_offboard", "fly_orbit", "follow_fresh",
+           "hold", "land_route", "manual_fresh", "offboard_fresh", "offboard_lost", "rtl_destination", "start_follow",
+           "start_land", "start_orbit", "start_rtl", "start_takeoff"]
