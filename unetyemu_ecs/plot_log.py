@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-TEXT_COLUMNS = frozenset({"mode", "mission_step_type", "drive_mode"})   # every other column is a number
+TEXT_COLUMNS = frozenset({"mode", "nav_state", "landed_state", "mission_step_type", "drive_mode"})   # every other column is a number
 MAX_LOG_BYTES = 512 * 1024**2    # a 10 Hz log of one vehicle grows by ~10 MB per simulated hour
 MAX_HEADER_BYTES = 64 * 1024
 MAX_LISTED_LINES = 12            # line numbers named per reason before "and N more"

@@ -14,7 +14,8 @@ import pytest
 from unetyemu_ecs import Simulation, load_world_text
 from unetyemu_ecs.plugins import GROUP_TRANSPORTS, Registry
 from unetyemu_ecs.transport.api import CommandStatus, Snapshot, TransportError, TransportPlugin
-from unetyemu_ecs.transport.bus import Inbox, SetTarget, Teleop
+from unetyemu_ecs.systems.flight_state import NavState
+from unetyemu_ecs.transport.bus import Inbox, OffboardSetpoint, SetNavMode, SetTarget, Teleop
 from unetyemu_ecs.transport.snapshot import SnapshotQueue
 
 WORLD = """
@@ -137,7 +138,8 @@ def test_discrete_commands_are_all_applied_in_order_and_only_streams_are_coalesc
         assert sim.fleet.stick[sim.row("d2")][0] == pytest.approx(0.2)
 
 
-def test_inbox_keeps_the_newest_of_each_stream_at_its_place():
+def test_inbox_keeps_the_newest_of_each_stream_where_the_stream_began():
+    # GIVEN two stick streams, targets and a rejection queued in one step
     inbox = Inbox()
     a = inbox.submit(Teleop("d1", (0.1, 0.0, 0.0, 0.0)))
     t1 = inbox.submit(SetTarget("d1", (1.0, 0.0, 1.0), None, None))
@@ -145,8 +147,21 @@ def test_inbox_keeps_the_newest_of_each_stream_at_its_place():
     other = inbox.submit(Teleop("d2", (0.3, 0.0, 0.0, 0.0)))
     t2 = inbox.submit(SetTarget("d1", (2.0, 0.0, 1.0), None, None))
     rejected = inbox.reject("d1", "/d1/teleop", "bad", "ros2")
-    assert [m.command_id for m in inbox.drain()] == [t1, b, other, t2, rejected]
-    assert a not in (t1, b) and inbox.drain() == []
+    # WHEN drained: the newest of d1's sticks takes the place of its first, everything else in order
+    assert [m.command_id for m in inbox.drain()] == [b, t1, other, t2, rejected]
+    assert inbox.drain() == []
+
+
+def test_a_mode_switch_after_the_first_setpoint_of_a_stream_finds_the_stream():
+    # GIVEN (MAVSDK's offboard start) a setpoint, then the switch to OFFBOARD, then the next setpoint, in one step
+    inbox = Inbox()
+    sp1 = inbox.submit(OffboardSetpoint("d1", pos_enu_m=(0.0, 0.0, 5.0)))
+    mode = inbox.submit(SetNavMode("d1", NavState.OFFBOARD))
+    sp2 = inbox.submit(OffboardSetpoint("d1", pos_enu_m=(1.0, 0.0, 5.0)))
+    # WHEN drained: the newest setpoint is applied before the mode switch
+    drained = inbox.drain()
+    assert [m.command_id for m in drained] == [sp2, mode] and drained[0].pos_enu_m == (1.0, 0.0, 5.0)
+    assert sp1 not in (sp2, mode)
 
 
 # -- transport plugins -------------------------------------------------------------------------

@@ -17,11 +17,11 @@ from ..phases import Phase
 from ..world import StepContext
 from .car_state import DriveMode
 from .fleet_system import FleetSystem
-from .flight_state import FlightMode
+from .flight_state import FlightMode, LandedState, NavState
 
 POSE_COLUMNS = ("time_s", "x_m", "y_m", "z_m", "roll_deg", "pitch_deg", "yaw_deg", "lat_deg", "lon_deg",
                 "alt_m", "vx_m_s", "vy_m_s", "vz_m_s", "speed_m_s")
-FLIGHT_COLUMNS = ("mode", "thrust_fl_n", "thrust_fr_n", "thrust_br_n", "thrust_bl_n", "thrust_total_n", "power_w",
+FLIGHT_COLUMNS = ("mode", "nav_state", "landed_state", "thrust_fl_n", "thrust_fr_n", "thrust_br_n", "thrust_bl_n", "thrust_total_n", "power_w",
                   "energy_used_wh", "battery_wh", "soc_frac", "remaining_time_s", "payload_kg", "mission_step",
                   "mission_step_type")
 CAR_COLUMNS = ("drive_mode", "throttle", "brake", "steer_deg", "speed_fwd_m_s", "speed_sp_m_s")
@@ -118,7 +118,8 @@ class TrajectoryLogSystem(FleetSystem):
             rt = esper.try_component(self._entity_of[name], MissionRuntime)
             if rt is not None:
                 step_type = rt.spec.steps[step].type
-        return [FlightMode(int(f.flight_mode[row])).name.lower(), *(f"{t:.4f}" for t in thrust),
+        return [FlightMode(int(f.flight_mode[row])).name.lower(), NavState(int(f.nav_state[row])).name.lower(),
+                LandedState(int(f.landed_state[row])).name.lower(), *(f"{t:.4f}" for t in thrust),
                 f"{thrust.sum():.4f}", f"{f.power_w[row]:.3f}", f"{f.energy_used_j[row] / 3600.0:.5f}",
                 f"{f.energy_j[row] / 3600.0:.5f}", f"{f.soc_frac[row]:.6f}",
                 f"{min(f.remaining_time_s[row], 1e9):.1f}", f"{f.payload_kg[row]:.3f}", str(step), step_type]

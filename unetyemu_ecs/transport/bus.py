@@ -411,19 +411,20 @@ class Inbox:
 
     def drain(self) -> list[Command | Rejected]:
         """Take everything queued, in arrival order, except that of the streamed kinds
-        (:data:`STREAM_KINDS`) only the newest per vehicle and kind is kept (at its place)."""
+        (:data:`STREAM_KINDS`) only the newest per vehicle and kind is kept, at the place of the
+        first of them: the stream existed from then on, so a mode change that followed its first
+        setpoint (MAVSDK's offboard start) still finds a setpoint before it."""
         taken: list[Command | Rejected] = []
-        newest: dict[tuple[str, str], int] = {}
+        slot: dict[tuple[str, str], int] = {}       # (vehicle, kind) -> index of the stream's first message
         while True:
             try:
                 msg = self._q.get_nowait()
             except queue.Empty:
-                break
+                return taken
             if msg.kind in STREAM_KINDS and not isinstance(msg, Rejected):
-                newest[(msg.vehicle, msg.kind)] = len(taken)
+                key = (msg.vehicle, msg.kind)
+                if key in slot:
+                    taken[slot[key]] = msg
+                    continue
+                slot[key] = len(taken)
             taken.append(msg)
-        if not newest:
-            return taken
-        keep = set(newest.values())
-        return [m for i, m in enumerate(taken)
-                if m.kind not in STREAM_KINDS or isinstance(m, Rejected) or i in keep]
