@@ -2,7 +2,7 @@
 
 Start a simulation with MAVLink endpoints first (every drone gets one with ``--mavlink``), in real time:
 
-    unetyemu run worlds/mavlink_pair.yaml --mavlink --duration 600 &
+    unetyemu run worlds/mavlink_pair.yaml --duration 600 &
     python examples/mavsdk_two_drones.py --drones 2
 
 Drone i listens on UDP 127.0.0.1:14580+i and sends to 14540+i (PX4 SITL's ports), so each MAVSDK
@@ -71,9 +71,9 @@ async def heading_deg(drone: System) -> float:
     return (await first(drone.telemetry.heading())).heading_deg
 
 
-async def fly(i: int, log: FlightLog) -> None:
-    drone = System(port=GRPC_BASE + i)
-    await drone.connect(system_address=f"udpin://127.0.0.1:{API_REMOTE_BASE + i}")
+async def fly(i: int, log: FlightLog, udp_base: int, grpc_base: int) -> None:
+    drone = System(port=grpc_base + i)
+    await drone.connect(system_address=f"udpin://127.0.0.1:{udp_base + i}")
     await first(drone.core.connection_state(), lambda s: s.is_connected)
     await first(drone.telemetry.health(), lambda h: h.is_global_position_ok and h.is_home_position_ok)
     home = await first(drone.telemetry.home())
@@ -140,18 +140,24 @@ async def fly(i: int, log: FlightLog) -> None:
     log(i, "landed", ned_m=await ned_position(drone))
 
 
-async def main_async(n: int, log: FlightLog) -> None:
-    await asyncio.gather(*(fly(i, log) for i in range(n)))
+async def main_async(n: int, log: FlightLog, udp_base: int, grpc_base: int) -> None:
+    await asyncio.gather(*(fly(i, log, udp_base, grpc_base) for i in range(n)))
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--drones", type=int, default=2, help="how many drones to fly (MAVLink instances 0..N-1)")
     parser.add_argument("--log", help="also append the JSON lines to this file")
+    parser.add_argument("--udp-base", type=int, default=API_REMOTE_BASE,
+                        help="drone i's API link sends to this port + i (the mavlink component's api_remote_base)")
+    parser.add_argument("--grpc-base", type=int, default=GRPC_BASE, help="mavsdk_server of drone i on this port + i")
     args = parser.parse_args(argv)
     if not 1 <= args.drones <= 10:
         parser.error(f"--drones must be in [1, 10], got {args.drones}")
-    asyncio.run(main_async(args.drones, FlightLog(args.log)))
+    for name in ("udp_base", "grpc_base"):
+        if not 1024 <= getattr(args, name) <= 65535 - args.drones:
+            parser.error(f"--{name.replace('_', '-')} must be in [1024, {65535 - args.drones}], got {getattr(args, name)}")
+    asyncio.run(main_async(args.drones, FlightLog(args.log), args.udp_base, args.grpc_base))
     return 0
 
 

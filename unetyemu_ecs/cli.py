@@ -111,7 +111,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="simulated seconds to run (default: the world file's world.duration_s)")
     run.add_argument("--rate", type=_rate, default=None, metavar="X|max",
                      help="pace: X times real time, or 'max' for as fast as possible "
-                          "(default: 1 with --gui, max otherwise)")
+                          "(default: 1 with --gui, ROS 2 or MAVLink endpoints, max otherwise)")
     run.add_argument("--seed", type=_seed, default=None, metavar="N", help="override the world file's seed")
     run.add_argument("--gui", action="store_true", help="open the PyBullet window")
     run.add_argument("--out", type=_out_dir, default=None, metavar="DIR",
@@ -279,10 +279,6 @@ def _run(args: argparse.Namespace, stop: _StopOnSignal) -> int:
     except ConfigError as exc:
         print(f"error: invalid world file:\n{exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    if args.rate is None:
-        rate = 1.0 if (args.gui or args.ros2 != "off" or args.mavlink) else None
-    else:
-        rate = None if args.rate == float("inf") else args.rate
     duration = args.duration if args.duration is not None else world.spec.world.duration_s
     out = _fresh_out_dir(args, world.name)
     if isinstance(out, str):
@@ -298,6 +294,10 @@ def _run(args: argparse.Namespace, stop: _StopOnSignal) -> int:
         print(f"error: cannot write outputs to {out}: {exc}", file=sys.stderr)
         return EXIT_FAILURE
     stop.sim = sim
+    if args.rate is None:       # a window or a transport (ROS 2, MAVLink endpoints) means someone is watching
+        rate = 1.0 if (args.gui or sim.transports) else None
+    else:
+        rate = None if args.rate == float("inf") else args.rate
     if stop.signum is not None:             # stopped while the world was being built
         sim.stop()
     if sim.ros2_backend != "off" and not args.quiet:
