@@ -136,3 +136,27 @@ def test_a_live_command_stops_the_world_files_teleop_script_for_good():
         assert sim.fleet.flight_mode[sim.row("d1")] == FlightMode.AUTO
         assert any(t.startswith("teleop_script stopped") for t in events_of(sim, "d1"))
         assert not any("cancelled" in t for t in events_of(sim, "d1"))
+
+
+def test_ros2_arm_and_nav_mode_topics_take_off_and_land_a_drone_and_refuse_unknown_modes():
+    String, Bool = msg_type("std_msgs/msg/String"), msg_type("std_msgs/msg/Bool")
+    with make() as sim:
+        # GIVEN a drone on the ground; WHEN /d1/arm (true) and then /d1/nav_mode "takeoff" arrive
+        armed = apply_command(sim, "d1", "quadrotor", "arm", Bool(data=True))
+        sim.step()
+        takeoff = apply_command(sim, "d1", "quadrotor", "nav_mode", String(data="takeoff"))
+        sim.run(duration=6.0)
+        # THEN both were accepted (source ros2) and the drone hovers at home + MIS_TAKEOFF_ALT (2.5 m)
+        assert sim.command_result(armed).ok and sim.command_result(takeoff).ok
+        assert sim.command_result(takeoff).source == "ros2"
+        home_z = sim.home_enu_m("d1")[2]
+        assert sim.position_enu_m("d1")[2] == pytest.approx(home_z + 2.5, abs=0.3)
+        # WHEN "land" follows; THEN it lands and disarms by itself
+        apply_command(sim, "d1", "quadrotor", "nav_mode", String(data="land"))
+        sim.run(duration=12.0)
+        assert sim.landed_state("d1") == "ON_GROUND" and not sim.is_armed("d1")
+        # AND an unknown mode, or a mode for a car, is refused before it becomes a command
+        with pytest.raises(ValueError, match="mode must be one of HOLD, TAKEOFF"):
+            apply_command(sim, "d1", "quadrotor", "nav_mode", String(data="warp"))
+        with pytest.raises(ValueError, match="navigation modes are for drones"):
+            apply_command(sim, "c1", "car", "nav_mode", String(data="takeoff"))

@@ -3,7 +3,10 @@
 ``/<v>/mission`` (std_msgs/String, mission JSON), ``/<v>/target`` (std_msgs/Float32MultiArray
 ``[x, y, z, yaw_deg, speed]``), ``/<v>/teleop`` (Float32MultiArray: drone ``[throttle, pitch,
 roll, yaw]``, car ``[throttle, brake, steering]``), ``/<v>/cmd_vel`` (geometry_msgs/Twist, body
-frame: drones ``linear.x/y/z`` and ``angular.z``, cars ``linear.x`` and ``angular.z``). Each message
+frame: drones ``linear.x/y/z`` and ``angular.z``, cars ``linear.x`` and ``angular.z``), ``/<v>/arm``
+(std_msgs/Bool: arm with the arming checks, or disarm; a car releases its brakes or parks) and
+``/<v>/nav_mode`` (std_msgs/String, a drone's PX4 navigation mode by name: ``takeoff``, ``land``,
+``rtl``, ``hold``, ``mission`` ...). Each message
 becomes one command (source ``ros2``) built from values checked by
 :mod:`unetyemu_ecs.command_checks`, the one place that knows every range; this module checks only
 what is ROS-specific: the shape of a message (array lengths, a target's mandatory speed) and a
@@ -15,13 +18,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from ...command_checks import check_cmd_vel, check_drive, check_set_target, check_teleop
+from ...command_checks import check_armed, check_cmd_vel, check_drive, check_nav_mode, check_set_target, check_teleop
 from ...config.schema import ConfigError, Issue
 from ...mission import mission_reference_issues, parse_mission
-from ..bus import CmdVel, Command, Drive, LoadMission, SetTarget, Teleop
+from ..bus import Arm, CmdVel, Command, Drive, LoadMission, SetNavMode, SetTarget, Teleop
 
 COMMAND_TOPICS = {"mission": "std_msgs/msg/String", "target": "std_msgs/msg/Float32MultiArray",
-                  "teleop": "std_msgs/msg/Float32MultiArray", "cmd_vel": "geometry_msgs/msg/Twist"}
+                  "teleop": "std_msgs/msg/Float32MultiArray", "cmd_vel": "geometry_msgs/msg/Twist",
+                  "arm": "std_msgs/msg/Bool", "nav_mode": "std_msgs/msg/String"}
 SOURCE = "ros2"
 
 
@@ -87,6 +91,12 @@ def to_command(world: CommandContext, vehicle: str, kind: str, topic_kind: str, 
         else:
             values = check_cmd_vel(vehicle, lin.x, ang.z, hold_s=hold_s)
         return CmdVel(vehicle, *values, source=SOURCE)
+    if topic_kind == "arm":
+        return Arm(vehicle, check_armed(vehicle, msg.data), source=SOURCE)
+    if topic_kind == "nav_mode":
+        if kind != "quadrotor":
+            raise ValueError("navigation modes are for drones; drive a car with target, teleop or cmd_vel")
+        return SetNavMode(vehicle, check_nav_mode(vehicle, str(msg.data)), source=SOURCE)
     raise ValueError(f"unknown command topic {topic_kind!r}")
 
 
