@@ -10,10 +10,13 @@ from typing import Any
 class MissionRuntime:
     """Where a drone is in its mission.
 
-    state : "running" | "completed" | "failed" | "cancelled"
+    state : "stored" (uploaded, not started) | "running" | "paused" (a mode switch or PauseMission; MISSION
+        mode or PauseMission(resume) continues it) | "completed" | "failed" | "cancelled"; the fleet array
+        ``mission_state`` mirrors it (MissionState)
     stage : "wait_before" | "active" | "wait_after" within the current step
     reason : why the mission failed or was cancelled ("" otherwise), e.g. "overweight", "low_battery"
-    scratch : per-step working values of the state machine (sub-stage, timers, targets)
+    scratch : per-step working values of the state machine (sub-stage, timers, targets; ``takeoff_first``
+        when a mission started on the ground climbs before its first step, as PX4 does)
     """
 
     spec: Any                       # unetyemu_ecs.mission.MissionSpec
