@@ -107,3 +107,87 @@ def test_two_drones_real_time_factor(benchmark, ros2, subscriber):
           f"{run_stats.real_time_factor:.2f} (per CPU second {run_stats.cpu_real_time_factor:.2f}; the loop's "
           f"thread {loop_cpu_s:.2f} s CPU); "
           f"ROS 2 counters {ros}")
+
+
+FLOODER = r"""
+import os, socket, sys, time
+ports = [int(p) for p in sys.argv[1].split(",")]
+until = time.monotonic() + float(sys.argv[2])
+sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+junk = [os.urandom(n) for n in (8, 40, 120, 280)] + [bytes([0xFD]) + os.urandom(60)]
+sent = 0
+while time.monotonic() < until:
+    for port in ports:
+        try:
+            sock.sendto(junk[sent % len(junk)], ("127.0.0.1", port))
+        except OSError:
+            pass
+        sent += 1
+print(sent, flush=True)
+"""
+
+
+def mavlink_world(ports: dict[str, int]) -> str:
+    rows = "\n".join(f"  - {{name: d{i}, type: quadrotor, preset: small, pose: {{position_m: [{2.0 * i}, 0.0, 0.2]}}, "
+                     f"components: {{imu: {{}}, battery: {{}}, mavlink: {{instance: {i}, "
+                     f"api_local_base: {ports['api_local']}, api_remote_base: {ports['api_remote']}, "
+                     f"gcs_local_base: {ports['gcs_local']}, gcs_remote: {ports['gcs_remote']}}}}}}}"
+                     for i in range(2))
+    return f"""
+world: {{name: bench_mavlink, physics_hz: 240, seed: 1}}
+scene: {{generator: none, ground_size_m: 400}}
+vehicles:
+{rows}
+"""
+
+
+@pytest.mark.parametrize("mavlink, flood", [(False, False), (True, False), (True, True)],
+                         ids=["mavlink-off", "mavlink-on", "mavlink-on-flooded"])
+def test_two_drones_mavlink_real_time_factor(benchmark, mavlink, flood):
+    """20 simulated seconds of two flying drones as fast as they go, without MAVLink, with an endpoint
+    per drone (PX4 telemetry streams to ports nobody reads), and with every endpoint port flooded by
+    a child process sending junk datagrams as fast as it can for the whole run."""
+    sys.path.insert(0, str(ROOT))
+    from tests.integration.mavlink_client import free_ports
+
+    ports = free_ports(2)
+    text = mavlink_world(ports) if mavlink else world(2)
+    stats: list = []
+    floods: list[subprocess.Popen] = []
+
+    def setup():
+        sim = Simulation(load_world_text(text))
+        _fly(sim)
+        if flood:
+            targets = [ports["api_local"], ports["api_local"] + 1, ports["gcs_local"], ports["gcs_local"] + 1]
+            floods.append(subprocess.Popen([sys.executable, "-c", FLOODER, ",".join(map(str, targets)), "600"],
+                                           stdout=subprocess.PIPE, text=True))
+            time.sleep(1.0)
+        return (sim,), {}
+
+    def run(sim):
+        thread0 = time.thread_time()
+        stats.append(sim.run(duration=RUN_S))
+        stats.append(time.thread_time() - thread0)
+        stats.append(sim.transport_counters())
+        sim.close()
+
+    try:
+        benchmark.pedantic(run, setup=setup, rounds=1, iterations=1)
+    finally:
+        for proc in floods:
+            proc.kill()
+            proc.wait(timeout=10)
+    run_stats, loop_cpu_s, counters = stats
+    links = [drone[name] for drone in counters.get("mavlink", {}).values() if isinstance(drone, dict)
+             for name in ("api", "gcs")]
+    junk = sum(link["bad_prefix"] + link["bad_crc"] + link["truncated"] + link["unknown_id"] + link["oversize"]
+               for link in links)
+    benchmark.extra_info.update(real_time_factor=round(run_stats.real_time_factor, 2),
+                                cpu_real_time_factor=round(run_stats.cpu_real_time_factor, 2),
+                                loop_thread_cpu_s=round(loop_cpu_s, 2), junk_dropped=junk,
+                                rx_rate_limited=sum(link["rx_rate_limited"] for link in links))
+    print(f"\nmavlink {'on' if mavlink else 'off'}{' + flood' if flood else ''}: {RUN_S:.0f} s simulated in "
+          f"{run_stats.wall_time_s:.2f} s wall: real-time factor {run_stats.real_time_factor:.2f} (per CPU second "
+          f"{run_stats.cpu_real_time_factor:.2f}; the loop's thread {loop_cpu_s:.2f} s CPU); junk datagrams "
+          f"dropped {junk}, receive turns cut short {benchmark.extra_info['rx_rate_limited']}")

@@ -280,6 +280,14 @@ def test_a_mavsdk_flight_completes_while_10000_garbage_datagrams_hit_its_port(pa
     # GIVEN the two-drone world running, and MAVSDK flying drone 0
     ports, start = pair
     sim = start(500.0)
+    gcs = Client(ports["gcs_remote"])
+    try:                                    # the endpoints are up (a datagram sent earlier would just be lost)
+        deadline = time.monotonic() + 60.0
+        while gcs.take("HEARTBEAT") is None and time.monotonic() < deadline:
+            time.sleep(0.1)
+            gcs.poll()
+    finally:
+        gcs.close()
     stop, sent = threading.Event(), [0]
     fuzzer = threading.Thread(target=_fuzz, args=(ports["api_local"], 10_000, stop, sent), daemon=True)
     fuzzer.start()

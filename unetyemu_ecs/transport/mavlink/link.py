@@ -14,6 +14,13 @@ from .codec import DatagramParser, RxCounters, signing_timestamp
 MAX_PEERS = 4
 PEER_TIMEOUT_S = 10.0            # wall clock: a peer silent this long gets no more telemetry
 RX_DATAGRAMS_PER_WAKE = 64       # bounded receive work per socket per loop turn
+# Receive budget per link (token bucket, wall clock). MAVSDK at full tilt sends ~100 datagrams/s (a 50 Hz
+# offboard stream, heartbeats, commands, a mission upload), a ground station far fewer; beyond the budget
+# the link stops reading until it refills and the kernel drops the excess, so a flooded port costs the
+# simulation loop a bounded share of the interpreter (Python threads share one GIL).
+RX_RATE_PER_S = 1000.0
+RX_BURST = 200
+RX_RESUME_TOKENS = 32            # a paused link reads again once this many datagrams are allowed
 SOCKET_BUFFER_BYTES = 1 << 20
 
 
@@ -48,6 +55,9 @@ class Link:
             self._mav.signing.timestamp = signing_timestamp()
         self.peers: dict[tuple[str, int], float] = {}
         self.sock: socket.socket | None = None
+        self._tokens = float(RX_BURST)
+        self._refilled_s: float | None = None
+        self.paused_until_s = 0.0        # wall clock: the receive budget is spent until then
 
     def open(self) -> None:
         sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)   # no SO_REUSEADDR: a taken port is an error
@@ -70,12 +80,17 @@ class Link:
             self.sock.close()
             self.sock = None
 
-    def receive(self) -> list[tuple[bytes, tuple[str, int]]]:
-        """Up to RX_DATAGRAMS_PER_WAKE datagrams waiting on the socket."""
+    def receive(self, now_s: float) -> list[tuple[bytes, tuple[str, int]]]:
+        """The datagrams waiting on the socket, at most RX_DATAGRAMS_PER_WAKE and within the receive
+        budget; when the budget is spent, ``paused_until_s`` says when to read again (counted in
+        ``rx_rate_limited``)."""
         out: list[tuple[bytes, tuple[str, int]]] = []
         if self.sock is None:
             return out
-        for _ in range(RX_DATAGRAMS_PER_WAKE):
+        if self._refilled_s is not None:
+            self._tokens = min(float(RX_BURST), self._tokens + (now_s - self._refilled_s) * RX_RATE_PER_S)
+        self._refilled_s = now_s
+        for _ in range(min(RX_DATAGRAMS_PER_WAKE, int(self._tokens))):
             try:
                 data, addr = self.sock.recvfrom(65535)
             except (BlockingIOError, InterruptedError):
@@ -83,7 +98,9 @@ class Link:
             except OSError:            # ICMP port unreachable from an earlier send, etc.
                 continue
             out.append((data, addr[:2]))
-        else:
+        self._tokens -= len(out)
+        if self._tokens < 1.0:
+            self.paused_until_s = now_s + (RX_RESUME_TOKENS - self._tokens) / RX_RATE_PER_S
             self.rx.rx_rate_limited += 1
         return out
 

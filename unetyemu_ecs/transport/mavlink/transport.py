@@ -148,9 +148,17 @@ class MavlinkTransport:
         for ep in self.endpoints.values():
             for link in ep.links:
                 sel.register(link.sock, selectors.EVENT_READ, (ep, link))
+        paused: list[tuple[Any, Any]] = []          # (endpoint, link) whose receive budget is spent
         try:
             while not self._stop.is_set():
-                for key, _ in sel.select(LOOP_TIMEOUT_S):
+                now = time.monotonic()
+                for ep, link in [p for p in paused if p[1].paused_until_s <= now]:
+                    paused.remove((ep, link))
+                    sel.register(link.sock, selectors.EVENT_READ, (ep, link))
+                timeout = LOOP_TIMEOUT_S
+                if paused:
+                    timeout = max(0.0, min(timeout, min(link.paused_until_s for _, link in paused) - now))
+                for key, _ in sel.select(timeout):
                     if key.data is None:
                         try:
                             while self._wake_r.recv(4096):
@@ -160,8 +168,11 @@ class MavlinkTransport:
                         continue
                     ep, link = key.data
                     now = time.monotonic()
-                    for data, addr in link.receive():
+                    for data, addr in link.receive(now):
                         ep.on_datagram(link, data, addr, now)
+                    if link.paused_until_s > now:          # budget spent: the kernel queues (and drops) meanwhile
+                        sel.unregister(link.sock)
+                        paused.append((ep, link))
                 self._drain()
                 now = time.monotonic()
                 for ep in self.endpoints.values():
