@@ -12,8 +12,8 @@ from typing import Any
 import esper
 import numpy as np
 
-from .command_checks import (check_armed, check_cmd_vel, check_drive, check_drive_route, check_set_target,
-                             check_teleop, is_real)
+from .command_checks import (check_armed, check_cmd_vel, check_drive, check_drive_route, check_flag,
+                             check_set_target, check_teleop, is_real)
 from .components.mission import MissionRuntime
 from .config.schema import ConfigError, Issue
 from .config.world_file import EntityDefinition, WorldDefinition, load_world
@@ -395,12 +395,15 @@ class Simulation(NavigationApi):
         self._drone(name)
         return self.inbox.submit(Teleop(name, *check_teleop(name, throttle, pitch, roll, yaw, hold_s)))
 
-    def arm(self, name: str, armed: bool = True) -> int:
-        """Arm (hold position in AUTO mode) or disarm (motors off) drone ``name``; for a car, release
-        the parking brake and hold still under speed control, or park it (brakes on)."""
+    def arm(self, name: str, armed: bool = True, *, force: bool = False) -> int:
+        """Arm (hold position) or disarm (motors off) drone ``name``, with PX4's checks: arming is
+        refused (REJECTED_STATE) with reason ``low_battery``, ``overweight``, ``motors_disabled``,
+        ``outside_fence`` or ``in_air``, disarming in the air with ``in_air``; ``force`` skips the
+        checks (MAVLink param2 = 21196). For a car: release the parking brake and hold still under
+        speed control, or park it (brakes on). Returns the command id."""
         if self.definition_of(name).kind == "package":
             raise ValueError(f"{name!r} is a package, not a vehicle")
-        return self.inbox.submit(Arm(name, check_armed(name, armed)))
+        return self.inbox.submit(Arm(name, check_armed(name, armed), check_flag("force", force)))
 
     def drive(self, name: str, throttle: float, brake: float, steering: float, *,
               hold_s: float | None = None) -> int:

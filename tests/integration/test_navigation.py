@@ -29,7 +29,7 @@ def result(sim: Simulation, command_id: int):
 
 
 def fly_up(sim: Simulation, alt_m: float) -> None:
-    assert result_after(sim, sim.set_armed("d1")).status == CommandStatus.ACCEPTED
+    assert result_after(sim, sim.arm("d1")).status == CommandStatus.ACCEPTED
     assert result_after(sim, sim.takeoff("d1", alt_m)).status == CommandStatus.ACCEPTED
     run_until(sim, lambda: sim.nav_state("d1") == "HOLD", 30.0)
 
@@ -91,23 +91,23 @@ def test_arming_with_5_percent_battery_is_refused_with_reason_low_battery():
     # GIVEN a drone whose battery is at 5 % (below its 10 % low-battery level)
     sim = make_sim(components="      energy: {initial_soc_frac: 0.05}\n")
     # WHEN it is asked to arm
-    res = result_after(sim, sim.set_armed("d1"))
+    res = result_after(sim, sim.arm("d1"))
     # THEN the command is refused for the state, with the machine reason, and the motors stay off
     assert res.status == CommandStatus.REJECTED_STATE and res.reason == "low_battery"
     assert "battery" in res.text
     assert not sim.is_armed("d1")
     # AND forcing it arms anyway (PX4's 21196)
-    assert result_after(sim, sim.set_armed("d1", force=True)).status == CommandStatus.ACCEPTED
+    assert result_after(sim, sim.arm("d1", force=True)).status == CommandStatus.ACCEPTED
     assert sim.is_armed("d1")
 
 
 def test_disarming_in_the_air_is_refused_unless_forced():
     sim = make_sim()
     fly_up(sim, 3.0)
-    res = result_after(sim, sim.set_armed("d1", False))
+    res = result_after(sim, sim.arm("d1", False))
     assert res.status == CommandStatus.REJECTED_STATE and res.reason == "in_air"
     assert sim.is_armed("d1")
-    assert result_after(sim, sim.set_armed("d1", False, force=True)).status == CommandStatus.ACCEPTED
+    assert result_after(sim, sim.arm("d1", False, force=True)).status == CommandStatus.ACCEPTED
     assert not sim.is_armed("d1")
 
 
@@ -118,7 +118,7 @@ def test_arming_sets_home_and_a_drone_that_never_takes_off_disarms_after_com_dis
     assert sim.get_param("d1", "COM_DISARM_PRFLT") == 1.5
     # WHEN it is armed and left on the ground
     armed_at = sim.sim_time_s
-    assert result_after(sim, sim.set_armed("d1")).status == CommandStatus.ACCEPTED
+    assert result_after(sim, sim.arm("d1")).status == CommandStatus.ACCEPTED
     run_until(sim, lambda: not sim.is_armed("d1"), 5.0, every_s=1 / 240)
     # THEN it disarms itself 1.5 s after arming
     assert sim.sim_time_s - armed_at == pytest.approx(1.5, abs=0.05)
@@ -129,7 +129,7 @@ def test_takeoff_and_rtl_are_refused_with_state_reasons():
     sim = make_sim()
     res = result_after(sim, sim.takeoff("d1"))
     assert (res.status, res.reason) == (CommandStatus.REJECTED_STATE, "not_armed")
-    sim.set_armed("d1")
+    sim.arm("d1")
     res = result_after(sim, sim.return_to_launch("d1"))
     assert (res.status, res.reason) == (CommandStatus.REJECTED_STATE, "landed")
     res = result_after(sim, sim.start_mission("d1"))
@@ -141,7 +141,7 @@ def test_bad_values_are_refused_before_anything_is_queued():
     for call in (lambda: sim.takeoff("d1", float("nan")), lambda: sim.takeoff("d1", -3.0),
                  lambda: sim.set_param("d1", "MIS_TAKEOFF_ALT", 1e6), lambda: sim.set_param("d1", "NOPE", 1.0),
                  lambda: sim.set_nav_mode("d1", "CRUISE"), lambda: sim.change_speed("d1", 0.0),
-                 lambda: sim.land("d1", (1e9, 0.0)), lambda: sim.set_armed("d1", "yes")):
+                 lambda: sim.land("d1", (1e9, 0.0)), lambda: sim.arm("d1", "yes")):
         with pytest.raises(ValueError):
             call()
     assert sim.services.results == [] or all(r.kind != "takeoff" for r in sim.services.results)
@@ -152,7 +152,7 @@ def test_takeoff_without_an_altitude_hovers_at_mis_takeoff_alt():
     # GIVEN an armed drone on the ground (MIS_TAKEOFF_ALT 2.5 m, PX4's default)
     sim = make_sim()
     home_z = sim.home_enu_m("d1")[2]
-    sim.set_armed("d1")
+    sim.arm("d1")
     # WHEN it is told to take off without an altitude
     assert result_after(sim, sim.takeoff("d1")).status == CommandStatus.ACCEPTED
     states = set()
@@ -252,7 +252,7 @@ def test_a_stored_mission_waits_then_takes_off_first_flies_and_returns_home():
     # THEN it is stored, not flown
     assert sim.mission_state("d1") == "STORED" and sim.landed_state("d1") == "ON_GROUND"
     # WHEN it is started
-    sim.set_armed("d1")
+    sim.arm("d1")
     assert result_after(sim, sim.start_mission("d1")).status == CommandStatus.ACCEPTED
     assert sim.nav_state("d1") == "MISSION"
     sim.run(duration=1.5)
@@ -289,7 +289,7 @@ def test_world_file_flight_params_set_the_takeoff_altitude():
     assert sim.get_param("d1", "RTL_RETURN_ALT") == 60.0          # the PX4 default where none is given
     home_z = sim.home_enu_m("d1")[2]
     # WHEN it takes off without an altitude
-    sim.set_armed("d1")
+    sim.arm("d1")
     sim.takeoff("d1")
     run_until(sim, lambda: sim.nav_state("d1") == "HOLD" and sim.landed_state("d1") == "IN_AIR", 10.0)
     sim.run(duration=1.0)
@@ -418,7 +418,7 @@ def test_set_mission_current_skips_to_that_step():
     res = result_after(sim, sim.set_mission_current("d1", 5))
     assert res.status == CommandStatus.REJECTED_INVALID and "does not exist" in res.text
     assert result_after(sim, sim.set_mission_current("d1", 1)).status == CommandStatus.ACCEPTED
-    sim.set_armed("d1")
+    sim.arm("d1")
     sim.start_mission("d1", 1)
     run_until(sim, lambda: sim.mission_state("d1") == "COMPLETED", 10.0)
     assert sim.position_enu_m("d1")[2] > 1.5
@@ -531,5 +531,5 @@ def test_geofence_breach_holds_and_arming_outside_is_refused():
     sim.set_param("d1", "COM_DISARM_LAND", 0.5)
     sim.land("d1")
     run_until(sim, lambda: not sim.is_armed("d1"), 20.0)
-    res = result_after(sim, sim.set_armed("d1"))
+    res = result_after(sim, sim.arm("d1"))
     assert (res.status, res.reason) == (CommandStatus.REJECTED_STATE, "outside_fence")

@@ -17,7 +17,7 @@ import numpy as np
 
 from .. import command_checks as cc
 from ..systems.flight_state import LandedState, MissionState, NavState
-from ..transport.bus import (Arm, ChangeSpeed, FollowTargetFix, Gripper, Land, ManualControl, OffboardSetpoint, Orbit,
+from ..transport.bus import (ChangeSpeed, FollowTargetFix, Gripper, Land, ManualControl, OffboardSetpoint, Orbit,
                              PauseMission, ReturnToLaunch, SetGeofence, SetHome, SetMissionCurrent, SetNavMode,
                              SetParam, SetRallyPoints, StartMission, StoreMission, Takeoff, Terminate)
 from .params import PARAM_BY_NAME, FlightParams, FlightParamsSpec, params_from_spec
@@ -31,13 +31,6 @@ class NavigationApi:
     layout: Any
 
     # -- modes -------------------------------------------------------------------------------
-    def set_armed(self, name: str, armed: bool = True, *, force: bool = False) -> int:
-        """Arm or disarm drone ``name`` with PX4's checks: arming is refused (REJECTED_STATE) with reason
-        ``low_battery``, ``overweight``, ``motors_disabled`` or ``in_air``; disarming in the air with
-        ``in_air``. ``force`` skips the checks (MAVLink param2 = 21196). Returns the command id."""
-        self._drone(name)
-        return self.inbox.submit(Arm(name, cc.check_armed(name, armed), cc.check_flag("force", force)))
-
     def set_nav_mode(self, name: str, mode: str | int) -> int:
         """Switch drone ``name`` to navigation mode ``mode`` (a :class:`NavState` or its name: "HOLD",
         "TAKEOFF", "LAND", "RTL", "MISSION"). Returns the command id."""
