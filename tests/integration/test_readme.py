@@ -27,6 +27,8 @@ SHELL_BLOCKS_TESTED_BY = {
                                   "simulation by a DDS peer)",
     "export RMW_IMPLEMENTATION": "tests/integration/test_ros2_*.py (discovery and topics by DDS peers; "
                                             "ros2 and rviz2 themselves need a ROS 2 install)",
+    "unetyemu run worlds/mavlink_pair.yaml": "tests/integration/test_mavlink_clients.py (the world with both "
+                                             "examples; the MAVSDK flight is a slow test)",
 }
 
 
