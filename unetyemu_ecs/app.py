@@ -12,7 +12,7 @@ from typing import Any
 import esper
 import numpy as np
 
-from .command_checks import (check_armed, check_cmd_vel, check_drive, check_drive_route, check_flag,
+from .command_checks import (check_armed, check_cmd_vel, check_drive, check_drive_route, check_flag, check_mission,
                              check_set_target, check_teleop, is_real)
 from .components.mission import MissionRuntime
 from .config.schema import ConfigError, Issue
@@ -33,7 +33,7 @@ from .systems.outputs import TrajectoryLogSystem
 from .systems.physics import PhysicsStepSystem
 from .systems.state import StateReadbackSystem
 from .config.limits import MAX_DURATION_S
-from .mission import MissionSpec, mission_reference_issues, parse_mission
+from .mission import MissionSpec
 from .navigation.commands_api import NavigationApi
 from .transport.api import CommandResult, Transport, TransportOptions
 from .transport.bus import Arm, CmdVel, Drive, DriveRoute, Inbox, LoadMission, SetTarget, Teleop
@@ -372,16 +372,7 @@ class Simulation(NavigationApi):
         drone keeps doing what it was doing. Returns the command id (:meth:`command_result`).
         """
         self._drone(name)
-        if isinstance(mission, (str, bytes, bytearray)):
-            spec = parse_mission(mission, source=f"mission for {name}")
-        elif isinstance(mission, MissionSpec):
-            spec = mission
-        else:
-            raise ValueError(f"load_mission({name!r}): expected mission text (JSON) or a MissionSpec, "
-                             f"got {type(mission).__name__}")
-        problems = mission_reference_issues(spec, self.layout, self.package_names)
-        if problems:
-            raise ConfigError([Issue(f"mission for {name}", None, path, msg) for path, msg in problems])
+        spec = check_mission(name, "load_mission", self.layout, self.package_names, mission)
         return self.inbox.submit(LoadMission(name, spec))
 
     def teleop(self, name: str, throttle: float, pitch: float, roll: float, yaw: float, *,

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -385,3 +386,23 @@ def check_follow_target(vehicle: str, layout: SceneLayout, pos: Sequence[float],
     if len(v) != 3 or not all(is_real(x) and math.isfinite(x) and abs(x) <= MAX_CRUISE_SPEED_M_S for x in v):
         raise ValueError(f"{what}: vel must be 3 finite numbers within +-{MAX_CRUISE_SPEED_M_S:g} m/s, got {vel!r}")
     return p, (float(v[0]), float(v[1]), float(v[2]))
+
+
+def check_mission(vehicle: str, what: str, layout: SceneLayout, package_names: Sequence[str], mission: object) -> Any:
+    """A mission for drone ``vehicle``: JSON text (ours or the paper's format) or a ``MissionSpec``,
+    whose pads and packages exist; returns the MissionSpec. A bad mission raises ``ConfigError``
+    naming the step and field; something that is not a mission, ``ValueError`` (``what`` names the call)."""
+    from .config.schema import ConfigError, Issue
+    from .mission import MissionSpec, mission_reference_issues, parse_mission
+
+    if isinstance(mission, (str, bytes, bytearray)):
+        spec = parse_mission(mission, source=f"mission for {vehicle}")
+    elif isinstance(mission, MissionSpec):
+        spec = mission
+    else:
+        raise ValueError(f"{what}({vehicle!r}): expected mission text (JSON) or a MissionSpec, got "
+                         f"{type(mission).__name__}")
+    problems = mission_reference_issues(spec, layout, package_names)
+    if problems:
+        raise ConfigError([Issue(f"mission for {vehicle}", None, path, msg) for path, msg in problems])
+    return spec

@@ -113,7 +113,7 @@ class NavigationApi:
         """Keep ``mission`` (JSON text or a MissionSpec; None clears it) as the drone's mission without
         starting it (``mission_state`` STORED); :meth:`start_mission` or MISSION mode runs it."""
         self._drone(name)
-        spec = None if mission is None else self._checked_mission(name, mission)
+        spec = None if mission is None else cc.check_mission(name, "store_mission", self.layout, self.package_names, mission)
         return self.inbox.submit(StoreMission(name, spec))
 
     def start_mission(self, name: str, first_step: int = 0) -> int:
@@ -199,20 +199,3 @@ class NavigationApi:
             if params is None:
                 params = params_from_spec(esper.try_component(ent, FlightParamsSpec))
         return params[param]
-
-    def _checked_mission(self, name: str, mission: Any) -> Any:
-        from ..config.schema import ConfigError, Issue
-        from ..mission import MissionSpec, parse_mission
-        from ..mission.refs import mission_reference_issues
-
-        if isinstance(mission, (str, bytes, bytearray)):
-            spec = parse_mission(mission, source=f"mission for {name}")
-        elif isinstance(mission, MissionSpec):
-            spec = mission
-        else:
-            raise ValueError(f"store_mission({name!r}): expected mission text (JSON) or a MissionSpec, "
-                             f"got {type(mission).__name__}")
-        problems = mission_reference_issues(spec, self.layout, self.package_names)
-        if problems:
-            raise ConfigError([Issue(f"mission for {name}", None, path, msg) for path, msg in problems])
-        return spec

@@ -246,10 +246,9 @@ class FlightCommandSystem(esper.Processor):
 
     def _on_Orbit(self, ctx: StepContext, ent: int, row: int, msg: Orbit) -> str | Refusal:
         f = ctx.fleet
-        if f.flight_mode[row] == FlightMode.DISARMED:
-            return Refusal(CommandStatus.REJECTED_STATE, "not_armed", "Orbit denied: the drone is disarmed")
-        if f.landed_state[row] == LandedState.ON_GROUND:
-            return Refusal(CommandStatus.REJECTED_STATE, "landed", "Orbit denied: take off first")
+        refusal = _airborne_refusal(f, row, "Orbit")
+        if refusal is not None:
+            return refusal
         _pause_mission(ctx, ent, "orbit")
         start_orbit(ctx, ent, row, msg)
         return ""
@@ -264,10 +263,9 @@ class FlightCommandSystem(esper.Processor):
     def _to_follow(self, ctx: StepContext, ent: int, row: int) -> str | Refusal:
         f = ctx.fleet
         nav, _ = ensure_nav(ent)
-        if f.flight_mode[row] == FlightMode.DISARMED:
-            return Refusal(CommandStatus.REJECTED_STATE, "not_armed", "Follow target denied: the drone is disarmed")
-        if f.landed_state[row] == LandedState.ON_GROUND:
-            return Refusal(CommandStatus.REJECTED_STATE, "landed", "Follow target denied: take off first")
+        refusal = _airborne_refusal(f, row, "Follow target")
+        if refusal is not None:
+            return refusal
         if not follow_fresh(nav, ctx.sim_time_s):
             return Refusal(CommandStatus.REJECTED_STATE, "no_target", "Follow target denied: no target fix received")
         _pause_mission(ctx, ent, "follow target")
@@ -310,10 +308,9 @@ class FlightCommandSystem(esper.Processor):
 
     def _on_ReturnToLaunch(self, ctx: StepContext, ent: int, row: int, msg: ReturnToLaunch) -> str | Refusal:
         f = ctx.fleet
-        if f.flight_mode[row] == FlightMode.DISARMED:
-            return Refusal(CommandStatus.REJECTED_STATE, "not_armed", "RTL denied: the drone is disarmed")
-        if f.landed_state[row] == LandedState.ON_GROUND:
-            return Refusal(CommandStatus.REJECTED_STATE, "landed", "RTL denied: the drone is on the ground")
+        refusal = _airborne_refusal(f, row, "RTL")
+        if refusal is not None:
+            return refusal
         _pause_mission(ctx, ent, "rtl")
         start_rtl(ctx, ent, row)
         return ""
@@ -425,6 +422,15 @@ class FlightCommandSystem(esper.Processor):
 
 
 _SPEED_COLUMN = {"ground": 0, "climb": 1, "descent": 2}
+
+
+def _airborne_refusal(f, row: int, what: str) -> Refusal | None:
+    """Why ``what`` (an action for a flying drone: orbit, follow, land, RTL) cannot start now, or None."""
+    if f.flight_mode[row] == FlightMode.DISARMED:
+        return Refusal(CommandStatus.REJECTED_STATE, "not_armed", f"{what} denied: the drone is disarmed")
+    if f.landed_state[row] == LandedState.ON_GROUND:
+        return Refusal(CommandStatus.REJECTED_STATE, "landed", f"{what} denied: the drone is on the ground")
+    return None
 
 
 def arming_refusal(f, ent: int, row: int) -> Refusal | None:

@@ -18,9 +18,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from ...command_checks import check_armed, check_cmd_vel, check_drive, check_nav_mode, check_set_target, check_teleop
-from ...config.schema import ConfigError, Issue
-from ...mission import mission_reference_issues, parse_mission
+from ...command_checks import (check_armed, check_cmd_vel, check_drive, check_mission, check_nav_mode,
+                               check_set_target, check_teleop)
+from ...config.schema import ConfigError
 from ..bus import Arm, CmdVel, Command, Drive, LoadMission, SetNavMode, SetTarget, Teleop
 
 COMMAND_TOPICS = {"mission": "std_msgs/msg/String", "target": "std_msgs/msg/Float32MultiArray",
@@ -60,10 +60,7 @@ def to_command(world: CommandContext, vehicle: str, kind: str, topic_kind: str, 
         if kind != "quadrotor":
             raise ValueError("missions are for drones; drive a car with target, teleop or cmd_vel")
         try:
-            spec = parse_mission(str(msg.data), source=f"mission for {vehicle}")
-            problems = mission_reference_issues(spec, world.layout, world.package_names)
-            if problems:
-                raise ConfigError([Issue(f"mission for {vehicle}", None, path, text) for path, text in problems])
+            spec = check_mission(vehicle, "mission", world.layout, world.package_names, str(msg.data))
         except ConfigError as exc:
             raise ValueError(f"mission rejected: {exc}") from None
         return LoadMission(vehicle, spec, source=SOURCE)
