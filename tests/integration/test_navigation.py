@@ -533,3 +533,28 @@ def test_geofence_breach_holds_and_arming_outside_is_refused():
     run_until(sim, lambda: not sim.is_armed("d1"), 20.0)
     res = result_after(sim, sim.arm("d1"))
     assert (res.status, res.reason) == (CommandStatus.REJECTED_STATE, "outside_fence")
+
+
+def test_geofence_action_warning_only_warns_and_return_flies_home():
+    from unetyemu_ecs.navigation.geofence import Geofence
+
+    # GIVEN GF_ACTION 1 (warning): WHEN the drone flies out of a 10 m fence
+    sim = make_sim()
+    fly_up(sim, 3.0)
+    sim.set_param("d1", "GF_ACTION", 1)
+    sim.set_geofence("d1", Geofence(inclusion_circles=((0.0, 0.0, 10.0),)))
+    sim.set_target("d1", 20.0, 0.0, 3.0)
+    sim.run(duration=12.0)
+    # THEN it warned and still flew to its target
+    assert any("geofence breached" in text and "warning" in text for _, _, text in sim.events)
+    assert np.hypot(*(sim.position_enu_m("d1")[:2] - [20.0, 0.0])) < 1.0 and sim.nav_state("d1") == "GOTO"
+    # GIVEN GF_ACTION 3 (return): WHEN it breaches again; THEN it returns home and lands
+    sim = make_sim()
+    fly_up(sim, 3.0)
+    sim.set_param("d1", "GF_ACTION", 3)
+    sim.set_param("d1", "RTL_RETURN_ALT", 5.0)
+    sim.set_geofence("d1", Geofence(inclusion_circles=((0.0, 0.0, 10.0),)))
+    sim.set_target("d1", 20.0, 0.0, 3.0)
+    run_until(sim, lambda: sim.nav_state("d1") == "RTL", 15.0)
+    run_until(sim, lambda: sim.landed_state("d1") == "ON_GROUND", 60.0)
+    assert np.hypot(*sim.position_enu_m("d1")[:2]) < 1.0

@@ -289,6 +289,19 @@ def fly_offboard(ctx: StepContext, ent: int, row: int, nav: NavRuntime, params: 
         f.yaw_rate_cmd_rad_s[row] = 0.0
 
 
+def failsafe_action(ctx: StepContext, ent: int, row: int, what: str, why: str) -> None:
+    """Carry out a failsafe: ``what`` is "return" (RTL), "land", "terminate" or "disarm" (motors off,
+    ``why`` in the event), or "hold"."""
+    if what == "return":
+        start_rtl(ctx, ent, row)
+    elif what == "land":
+        start_land(ctx, ent, row, None)
+    elif what in ("terminate", "disarm"):
+        disarm(ctx, ent, row, f"{why} ({what})")
+    else:
+        hold(ctx, ent, row)
+
+
 def offboard_lost(ctx: StepContext, ent: int, row: int, nav: NavRuntime, params: FlightParams) -> None:
     """The OFFBOARD stream lapsed (COM_OF_LOSS_T): COM_OBL_RC_ACT's failsafe (0, 1, 2, 5 hold; 3 return;
     4 land; 6 terminate; 7 disarm, when on the ground, else hold)."""
@@ -304,14 +317,7 @@ def offboard_lost(ctx: StepContext, ent: int, row: int, nav: NavRuntime, params:
         what = "hold"
     ctx.services.note(ctx.sim_time_s, name, f"failsafe: offboard setpoints lost for {params['COM_OF_LOSS_T']:g} s "
                                             f"(COM_OF_LOSS_T): {what} (COM_OBL_RC_ACT {action})")
-    if what == "return":
-        start_rtl(ctx, ent, row)
-    elif what == "land":
-        start_land(ctx, ent, row, None)
-    elif what in ("terminate", "disarm"):
-        disarm(ctx, ent, row, f"offboard loss failsafe ({what})")
-    else:
-        hold(ctx, ent, row)
+    failsafe_action(ctx, ent, row, what, "offboard loss failsafe")
 
 
 # -- POSCTL / MANUAL from ManualControl sticks ------------------------------------------------------
@@ -387,12 +393,8 @@ def _rc_lost_action(ctx: StepContext, ent: int, row: int, nav: NavRuntime, param
     ctx.services.note(ctx.sim_time_s, _name(ent), f"failsafe: manual control still lost: {what} "
                                                   f"(NAV_RCL_ACT {action})")
     _set_mode(nav, "", "", ctx.sim_time_s, None)
-    if what == "return":
-        start_rtl(ctx, ent, row)
-    elif what == "land":
-        start_land(ctx, ent, row, None)
-    elif what in ("terminate", "disarm"):
-        disarm(ctx, ent, row, f"manual control loss failsafe ({what})")
+    if what != "hold":              # holding already since the sticks were lost
+        failsafe_action(ctx, ent, row, what, "manual control loss failsafe")
 
 
 # -- ORBIT -------------------------------------------------------------------------------------
@@ -517,15 +519,10 @@ def enforce_fence(ctx: StepContext, ent: int, row: int, nav: NavRuntime, params:
         return
     what = {1: "warning", 2: "hold", 3: "return", 4: "terminate", 5: "land"}[action]
     ctx.services.note(ctx.sim_time_s, _name(ent), f"geofence breached ({why}): {what} (GF_ACTION {action})")
+    if what == "warning":           # PX4: warn only, the flight goes on as it was
+        return
     _pause_running_mission(ctx, ent, row, "geofence")
-    if what == "hold":
-        hold(ctx, ent, row)
-    elif what == "return":
-        start_rtl(ctx, ent, row)
-    elif what == "land":
-        start_land(ctx, ent, row, None)
-    elif what == "terminate":
-        disarm(ctx, ent, row, "geofence breach: flight termination")
+    failsafe_action(ctx, ent, row, what, "geofence breach")
 
 
 def _pause_running_mission(ctx: StepContext, ent: int, row: int, why: str) -> None:
