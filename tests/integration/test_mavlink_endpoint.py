@@ -276,3 +276,21 @@ def test_highres_imu_is_the_imu_sample_in_frd_gravity_minus_z_at_rest():
     finally:
         c.close()
         sim.close()
+
+
+def test_a_fault_in_one_drones_telemetry_is_counted_and_the_other_drone_keeps_its_link(rig, monkeypatch):
+    sim, api, _, _ = rig
+    transport = sim.transports["mavlink"]
+    # GIVEN drone 1's snapshot handler failing on every snapshot (a fault injected in place of a bug)
+    def broken(*_args):
+        raise RuntimeError("injected fault")
+
+    monkeypatch.setattr(transport.endpoints["d1"], "on_snapshot", broken)
+    # WHEN the simulation runs on
+    sim.step(240)
+    api[1].drain()
+    # THEN drone 2 still sends telemetry, and the fault is counted for the summary, not fatal
+    assert wait_for(sim, api[1], "HEARTBEAT") is not None
+    counters = transport.counters()
+    assert counters["handler_errors"] > 0 and "injected fault" in counters["first_handler_error"]
+    assert "thread_error" not in counters

@@ -55,6 +55,8 @@ class MavlinkTransport:
         self._result_cursor = 0
         self._port: CommandPort | None = None
         self._thread_error: str = ""
+        self._handler_errors = 0
+        self._first_handler_error = ""
 
     # -- Transport ---------------------------------------------------------------------------------------
 
@@ -135,6 +137,9 @@ class MavlinkTransport:
     def counters(self) -> dict[str, Any]:
         out: dict[str, Any] = {v: ep.counters() for v, ep in self.endpoints.items()}
         out["snapshots_dropped"] = self._dropped
+        if self._handler_errors:
+            out["handler_errors"] = self._handler_errors
+            out["first_handler_error"] = self._first_handler_error
         if self._thread_error:
             out["thread_error"] = self._thread_error
         return out
@@ -185,6 +190,16 @@ class MavlinkTransport:
         finally:
             sel.close()
 
+    def _guarded(self, handler: Any, *args: Any) -> None:
+        """Run one endpoint's handler; an exception is counted (and the first one kept for the summary)
+        instead of ending the thread that serves every drone."""
+        try:
+            handler(*args)
+        except Exception as exc:          # noqa: BLE001 - one drone's fault must not silence the others
+            self._handler_errors += 1
+            if not self._first_handler_error:
+                self._first_handler_error = f"{type(exc).__name__}: {exc}"
+
     def _drain(self) -> None:
         with self._lock:
             snaps = list(self._queue)
@@ -195,12 +210,12 @@ class MavlinkTransport:
             for result in snap.results[self._result_cursor:snap.results_end]:
                 ep = self.endpoints.get(result.vehicle)
                 if ep is not None:
-                    ep.on_result(result)
+                    self._guarded(ep.on_result, result)
             self._result_cursor = max(self._result_cursor, snap.results_end)
             for _, vehicle, text in snap.events[self._event_cursor:snap.events_end]:
                 ep = self.endpoints.get(vehicle)
                 if ep is not None:
-                    ep.on_event(text)
+                    self._guarded(ep.on_event, text)
             self._event_cursor = max(self._event_cursor, snap.events_end)
         newest = snaps[-1]
         if len(snaps) > 1 and any(s.mission_status for s in snaps[:-1]):
@@ -213,7 +228,7 @@ class MavlinkTransport:
                 row = newest.row(vehicle)
             except ValueError:
                 continue
-            ep.on_snapshot(newest, row)
+            self._guarded(ep.on_snapshot, newest, row)
         with self._cond:
             self._handled += len(snaps)
             self._cond.notify_all()
