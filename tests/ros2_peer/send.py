@@ -51,7 +51,9 @@ def main() -> None:
     end = time.monotonic() + seconds
     while not clock.take(N=10) and time.monotonic() < end:
         time.sleep(0.05)
-    time.sleep(1.0)                       # let every writer match the simulator's readers
+    while time.monotonic() < end and not all(w.get_matched_subscriptions() for w in writers.values()):
+        time.sleep(0.05)                  # every writer matched the simulator's reader (discovery has no fixed time)
+    time.sleep(0.2)
     logs, seen_status = [], []
     for topic, type_name, fields in commands:
         writers[topic].write(build(type_name, fields))
