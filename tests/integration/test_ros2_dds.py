@@ -14,6 +14,7 @@ import pytest
 from unetyemu_ecs import Simulation, load_world_text
 from unetyemu_ecs.sensors.lidar import read_points
 from unetyemu_ecs.sensors.messages import deserialize, serialize
+from unetyemu_ecs.transport.ros2.inbound import COMMAND_TOPICS
 
 LISTENER = Path(__file__).resolve().parent.parent / "ros2_peer" / "listen.py"
 
@@ -192,8 +193,9 @@ def test_the_simulator_is_a_ros2_node_whose_endpoints_announce_their_jazzy_type_
         writer = got["writers"][topic]
         assert writer["gid"][:32] in writer_gids, topic
         assert writer["user_data"] == f"typehash={typestore().hash_rihs01(type_name)};", topic
-    # readers: mission, target, teleop, cmd_vel of every vehicle, and the 6 parameter service requests
-    assert len(node.reader_gid_seq) == 4 * len(vehicles) + 6
+    # readers: every command topic of every vehicle (mission, target, teleop, cmd_vel, arm, nav_mode), and
+    # the 6 parameter service requests
+    assert len(node.reader_gid_seq) == len(COMMAND_TOPICS) * len(vehicles) + 6
 
 
 def test_the_ros_discovery_info_writer_announces_its_type_hash_as_rmw_does(exchange):
