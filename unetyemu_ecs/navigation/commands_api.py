@@ -18,8 +18,8 @@ import numpy as np
 from .. import command_checks as cc
 from ..systems.flight_state import LandedState, MissionState, NavState
 from ..transport.bus import (ChangeSpeed, FollowTargetFix, Gripper, Land, ManualControl, OffboardSetpoint, Orbit,
-                             PauseMission, ReturnToLaunch, SetGeofence, SetHome, SetMissionCurrent, SetNavMode,
-                             SetParam, SetRallyPoints, StartMission, StoreMission, Takeoff, Terminate)
+                             PauseMission, ReturnToLaunch, SetFenceEnabled, SetGeofence, SetHome, SetMissionCurrent,
+                             SetNavMode, SetParam, SetRallyPoints, StartMission, StoreMission, Takeoff, Terminate)
 from .params import PARAM_BY_NAME, FlightParams, FlightParamsSpec, params_from_spec
 
 
@@ -102,6 +102,13 @@ class NavigationApi:
         if fence is not None and not isinstance(fence, Geofence):
             raise ValueError(f"set_geofence({name!r}): expected a Geofence or None, got {type(fence).__name__}")
         return self.inbox.submit(SetGeofence(name, fence))
+
+    def enable_geofence(self, name: str, enabled: bool) -> int:
+        """Enable (True) or disable (False) the drone's geofence, as MAV_CMD_DO_FENCE_ENABLE does: disabled,
+        a breach triggers nothing and arming outside is allowed; enabled again while outside, GF_ACTION
+        applies at once. The fence itself (``set_geofence``, GF_MAX_*) is kept."""
+        self._drone(name)
+        return self.inbox.submit(SetFenceEnabled(name, cc.check_flag("enabled", enabled)))
 
     def terminate(self, name: str) -> int:
         """Flight termination: motors off now, wherever the drone is."""

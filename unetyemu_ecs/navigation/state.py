@@ -34,7 +34,8 @@ class NavRuntime:
     manual : the newest ManualControl sticks and the sim time they arrived (POSCTL / MANUAL)
     orbit : the Orbit command being flown (mode "orbit")
     follow : the newest FollowTargetFix and its sim time; follow_sp_enu_m the filtered follow setpoint
-    fence : the geofence (navigation.geofence.Geofence, None: none); fence_ok whether the last check passed
+    fence : the geofence (navigation.geofence.Geofence, None: none); fence_ok whether the last check passed;
+        fence_enabled False: neither enforced nor checked at arming (MAV_CMD_DO_FENCE_ENABLE 0)
     """
 
     mode: str = ""
@@ -58,6 +59,7 @@ class NavRuntime:
     follow_course_rad: float = 0.0
     fence: Any = None
     fence_ok: bool = True
+    fence_enabled: bool = True
 
 
 __all__ = ["NavRuntime"]

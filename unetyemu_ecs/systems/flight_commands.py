@@ -8,22 +8,22 @@ import esper
 import numpy as np
 
 from ..components.body import FleetSlot, Identity
-from ..components.flight import EnergyModel, GuidanceLimits, PayloadBay, TeleopScript
+from ..components.flight import GuidanceLimits, TeleopScript
 from ..components.mission import MissionRuntime
 from ..navigation.state import NavRuntime
 from ..phases import Phase
 from ..transport.api import CommandStatus
 from ..transport.bus import (Arm, ChangeSpeed, CmdVel, FollowTargetFix, Gripper, Land, LoadMission, ManualControl,
-                             OffboardSetpoint, Orbit, PauseMission, ReturnToLaunch, SetGeofence, SetHome,
-                             SetMissionCurrent, SetNavMode, SetParam, SetRallyPoints, SetTarget, StartMission,
+                             OffboardSetpoint, Orbit, PauseMission, ReturnToLaunch, SetFenceEnabled, SetGeofence,
+                             SetHome, SetMissionCurrent, SetNavMode, SetParam, SetRallyPoints, SetTarget, StartMission,
                              StoreMission, Takeoff, Teleop, Terminate)
 from ..world import StepContext
 from .commands import Refusal, serve_commands, warn_if_obstructed
 from .flight_state import (FlightMode, LandedState, MissionState, NavState, PayloadRequest, PayloadResult, Route,
                            set_route)
-from .navigator import (disarm, ensure_all_drones, ensure_nav, fence_breach, fly_manual, fly_offboard, follow_fresh,
-                        hold, manual_fresh, offboard_fresh, start_follow, start_land, start_orbit, start_rtl,
-                        start_takeoff)
+from .navigator import (arming_refusal, disarm, ensure_all_drones, ensure_nav, fly_manual, fly_offboard,
+                        follow_fresh, hold, manual_fresh, offboard_fresh, start_follow, start_land, start_orbit,
+                        start_rtl, start_takeoff)
 
 
 class FlightCommandSystem(esper.Processor):
@@ -138,13 +138,13 @@ class FlightCommandSystem(esper.Processor):
     # -- arming ------------------------------------------------------------------------------
     def _on_Arm(self, ctx: StepContext, ent: int, row: int, msg: Arm) -> str | Refusal:
         f = ctx.fleet
-        nav, _ = ensure_nav(ent)
+        nav, params = ensure_nav(ent)
         armed = f.flight_mode[row] != FlightMode.DISARMED
         if msg.armed:
             if armed:
                 return ""
             if not msg.force:
-                why = arming_refusal(f, ent, row)
+                why = arming_refusal(f, ent, row, nav, params)
                 if why is not None:
                     return why
             if f.landed_state[row] in (LandedState.ON_GROUND, LandedState.UNDEFINED):
@@ -276,6 +276,15 @@ class FlightCommandSystem(esper.Processor):
         nav, _ = ensure_nav(ent)
         nav.fence, nav.fence_ok = msg.fence, True
         ctx.services.note(ctx.sim_time_s, msg.vehicle, "geofence cleared" if msg.fence is None else "geofence set")
+        return ""
+
+    def _on_SetFenceEnabled(self, ctx: StepContext, ent: int, row: int, msg: SetFenceEnabled) -> str | Refusal:
+        """Enable or disable the drone's geofence (PX4's MAV_CMD_DO_FENCE_ENABLE): disabled, a breach is
+        neither acted on nor refuses arming; enabled again, a drone outside it gets GF_ACTION at once."""
+        nav, _ = ensure_nav(ent)
+        if nav.fence_enabled != msg.enabled:
+            nav.fence_enabled, nav.fence_ok = msg.enabled, True
+            ctx.services.note(ctx.sim_time_s, msg.vehicle, "geofence " + ("enabled" if msg.enabled else "disabled"))
         return ""
 
     def _to_hold(self, ctx: StepContext, ent: int, row: int) -> str | Refusal:
@@ -430,29 +439,6 @@ def _airborne_refusal(f, row: int, what: str) -> Refusal | None:
         return Refusal(CommandStatus.REJECTED_STATE, "not_armed", f"{what} denied: the drone is disarmed")
     if f.landed_state[row] == LandedState.ON_GROUND:
         return Refusal(CommandStatus.REJECTED_STATE, "landed", f"{what} denied: the drone is on the ground")
-    return None
-
-
-def arming_refusal(f, ent: int, row: int) -> Refusal | None:
-    """Why drone ``row`` may not arm now (PX4's pre-arm checks that apply here), or None."""
-    energy = esper.try_component(ent, EnergyModel)
-    if energy is not None and (f.low_battery[row] or f.soc_frac[row] < energy.low_battery_land_frac):
-        return Refusal(CommandStatus.REJECTED_STATE, "low_battery",
-                       f"Arming denied: battery at {100 * f.soc_frac[row]:.0f} % (below "
-                       f"{100 * energy.low_battery_land_frac:.0f} %)")
-    if not f.motors_enabled[row]:
-        bay = esper.try_component(ent, PayloadBay)
-        if bay is not None and f.payload_kg[row] > bay.max_payload_kg:
-            return Refusal(CommandStatus.REJECTED_STATE, "overweight",
-                           f"Arming denied: payload {f.payload_kg[row]:.2f} kg exceeds {bay.max_payload_kg:g} kg")
-        return Refusal(CommandStatus.REJECTED_STATE, "motors_disabled", "Arming denied: motors disabled")
-    nav, params = ensure_nav(ent)
-    why = fence_breach(f, row, nav, params)
-    if why:
-        return Refusal(CommandStatus.REJECTED_STATE, "outside_fence", f"Arming denied: {why}")
-    if f.landed_state[row] not in (LandedState.ON_GROUND, LandedState.UNDEFINED):
-        return Refusal(CommandStatus.REJECTED_STATE, "in_air",
-                       "Arming denied: not on the ground (force it to arm in the air)")
     return None
 
 

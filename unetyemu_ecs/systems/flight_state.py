@@ -52,6 +52,23 @@ class LandedState(IntEnum):
     LANDING = 4
 
 
+class ArmBlock(IntEnum):
+    """Why a drone would be refused arming now (``arm_block``, written every step by the navigator from
+    the same check the Arm command applies); NONE: it would arm. ``name.lower()`` is the refusal's reason."""
+
+    NONE = 0
+    LOW_BATTERY = 1       # battery below its low-battery level
+    OVERWEIGHT = 2        # the package weighs more than the drone may lift (motors disabled)
+    MOTORS_DISABLED = 3   # motors off for another reason (empty battery)
+    OUTSIDE_FENCE = 4     # outside its (enabled) geofence
+    IN_AIR = 5            # not on the ground
+
+
+ARM_BLOCK_TEXT = {ArmBlock.NONE: "", ArmBlock.LOW_BATTERY: "low battery", ArmBlock.OVERWEIGHT: "payload too heavy",
+                  ArmBlock.MOTORS_DISABLED: "motors disabled", ArmBlock.OUTSIDE_FENCE: "outside the geofence",
+                  ArmBlock.IN_AIR: "not on the ground"}
+
+
 class MissionState(IntEnum):
     """State of a drone's mission (``mission_state``), as a number transports can read."""
 
@@ -126,6 +143,7 @@ FLIGHT_ARRAYS: dict[str, tuple[tuple[int, ...], type, float]] = {
     "home_enu_m": ((3,), np.float64, 0.0),            # home position (set at first fix and at arming)
     "home_set": ((), np.bool_, False),
     "mission_state": ((), np.int8, 0),                # MissionState of the drone's mission
+    "arm_block": ((), np.int8, 0),                    # ArmBlock: why arming would be refused now (0: it would arm)
     # route following (RouteFollowingSystem)
     "route_segment": ((), np.int64, 0),
     "arrived": ((), np.bool_, False),                 # within arrival radius of the route's end

@@ -27,13 +27,15 @@ import esper
 import numpy as np
 
 from ..components.body import FleetSlot, Identity, RigidBody
-from ..components.flight import GuidanceLimits
+from ..components.flight import EnergyModel, GuidanceLimits, PayloadBay
 from ..components.mission import MissionRuntime
 from ..navigation.params import FlightParams, FlightParamsSpec, params_from_spec
 from ..navigation.state import NavRuntime
 from ..phases import Phase
+from ..transport.api import CommandStatus
 from ..world import StepContext
-from .flight_state import FlightMode, LandedState, MissionState, NavState, Route, set_route
+from .commands import Refusal
+from .flight_state import ArmBlock, FlightMode, LandedState, MissionState, NavState, Route, set_route
 
 LAND_TRIGGER_S = 0.3        # the land-detector conditions must hold this long (PX4 LandDetector trigger time)
 LAND_BELOW_M = 0.3          # a landing aims this far below the resting height, so touchdown happens
@@ -490,7 +492,10 @@ def fly_follow(ctx: StepContext, row: int, nav: NavRuntime, params: FlightParams
 
 # -- geofence ----------------------------------------------------------------------------------
 def fence_breach(f: Any, row: int, nav: NavRuntime, params: FlightParams) -> str:
-    """Why the drone is outside its geofence (zones, GF_MAX_HOR_DIST, GF_MAX_VER_DIST from home), "" if inside."""
+    """Why the drone is outside its geofence (zones, GF_MAX_HOR_DIST, GF_MAX_VER_DIST from home), "" if inside
+    or if the fence is disabled (MAV_CMD_DO_FENCE_ENABLE 0)."""
+    if not nav.fence_enabled:
+        return ""
     pos = f.pos_enu_m[row]
     if nav.fence is not None and not nav.fence.empty and not nav.fence.contains(pos):
         return "outside the fence zones"
@@ -531,6 +536,37 @@ def _pause_running_mission(ctx: StepContext, ent: int, row: int, why: str) -> No
         rt.state, rt.reason = "paused", why
         ctx.fleet.charging[row] = False
         ctx.fleet.mission_state[row] = MissionState.PAUSED
+
+
+# -- arming checks ---------------------------------------------------------------------------
+def arming_refusal(f: Any, ent: int, row: int, nav: NavRuntime, params: FlightParams) -> Refusal | None:
+    """Why drone ``row`` may not arm now (PX4's pre-arm checks that apply here), or None. The one place
+    these checks live: the Arm command refuses with it, the navigator writes its code to ``arm_block``
+    every step (MAVLink's SYS_STATUS pre-arm health and MAV_CMD_RUN_PREARM_CHECKS read that)."""
+    energy = esper.try_component(ent, EnergyModel)
+    if energy is not None and (f.low_battery[row] or f.soc_frac[row] < energy.low_battery_land_frac):
+        return Refusal(CommandStatus.REJECTED_STATE, "low_battery",
+                       f"Arming denied: battery at {100 * f.soc_frac[row]:.0f} % (below "
+                       f"{100 * energy.low_battery_land_frac:.0f} %)")
+    if not f.motors_enabled[row]:
+        bay = esper.try_component(ent, PayloadBay)
+        if bay is not None and f.payload_kg[row] > bay.max_payload_kg:
+            return Refusal(CommandStatus.REJECTED_STATE, "overweight",
+                           f"Arming denied: payload {f.payload_kg[row]:.2f} kg exceeds {bay.max_payload_kg:g} kg")
+        return Refusal(CommandStatus.REJECTED_STATE, "motors_disabled", "Arming denied: motors disabled")
+    why = fence_breach(f, row, nav, params)
+    if why:
+        return Refusal(CommandStatus.REJECTED_STATE, "outside_fence", f"Arming denied: {why}")
+    if f.landed_state[row] not in (LandedState.ON_GROUND, LandedState.UNDEFINED):
+        return Refusal(CommandStatus.REJECTED_STATE, "in_air",
+                       "Arming denied: not on the ground (force it to arm in the air)")
+    return None
+
+
+def arm_block(f: Any, ent: int, row: int, nav: NavRuntime, params: FlightParams) -> int:
+    """The :class:`ArmBlock` code of :func:`arming_refusal` (0: the drone would arm now)."""
+    why = arming_refusal(f, ent, row, nav, params)
+    return ArmBlock.NONE if why is None else ArmBlock[why.reason.upper()]
 
 
 # -- land detector ---------------------------------------------------------------------------
@@ -597,8 +633,8 @@ class NavigatorSystem(esper.Processor):
     """Home, the navigator-flown modes (TAKEOFF, LAND, RTL) and auto-disarm.
 
     Phase: MISSION (after the mission and emergency landing). Reads: pose, arrived, landed_state,
-    mission_state, FlightParams. Writes: home_enu_m/home_set, routes and flight_mode (mode changes,
-    disarm), nav_state; NavRuntime.
+    mission_state, battery, payload, FlightParams. Writes: home_enu_m/home_set, routes and flight_mode
+    (mode changes, disarm), nav_state, arm_block (the arming checks' verdict at the start of the step); NavRuntime.
     """
 
     phase = Phase.MISSION
@@ -612,6 +648,7 @@ class NavigatorSystem(esper.Processor):
             if not f.home_set[row]:
                 f.home_enu_m[row] = f.pos_enu_m[row]
                 f.home_set[row] = True
+            f.arm_block[row] = arm_block(f, ent, row, nav, params)
             armed = f.flight_mode[row] != FlightMode.DISARMED
             if not armed:
                 if nav.mode:
@@ -687,7 +724,8 @@ class NavigatorSystem(esper.Processor):
                 disarm(ctx, ent, row, f"armed {delay:g} s without taking off (COM_DISARM_PRFLT)")
 
 
-__all__ = ["LandDetectorSystem", "NavigatorSystem", "brake_and_hold", "disarm", "enforce_fence", "ensure_all_drones",
-           "ensure_nav", "fence_breach", "fly_follow", "fly_manual", "fly_offboard", "fly_orbit", "follow_fresh",
-           "hold", "land_route", "manual_fresh", "offboard_fresh", "offboard_lost", "rtl_destination", "start_follow",
-           "start_land", "start_orbit", "start_rtl", "start_takeoff"]
+__all__ = ["LandDetectorSystem", "NavigatorSystem", "arm_block", "arming_refusal", "brake_and_hold", "disarm",
+           "enforce_fence", "ensure_all_drones", "ensure_nav", "fence_breach", "fly_follow", "fly_manual",
+           "fly_offboard", "fly_orbit", "follow_fresh", "hold", "land_route", "manual_fresh", "offboard_fresh",
+           "offboard_lost", "rtl_destination", "start_follow", "start_land", "start_orbit", "start_rtl",
+           "start_takeoff"]

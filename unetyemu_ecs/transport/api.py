@@ -108,7 +108,8 @@ class Snapshot:
     armed (N,) bool · landed_state (N,) int (LandedState) · home_enu_m (N,3) · home_set (N,) bool ·
     soc_frac (N,) · energy_j (N,) left [J] · energy_used_j (N,) · power_w (N,) · remaining_time_s (N,) ·
     low_battery (N,) bool · payload_kg (N,) · mission_step (N,) int (-1 none) ·
-    mission_state (N,) int (MissionState) · speed_limit_m_s (N,3).
+    mission_state (N,) int (MissionState) · speed_limit_m_s (N,3) ·
+    arm_block (N,) int (ArmBlock: why arming would be refused now, 0 = it would arm).
 
     ``sensors``: the sensor samples measured this step (``SensorSample``: vehicle, key, topic, msg,
     ros2 flag). ``events``: the simulation's append-only event list (time, vehicle, text) — read

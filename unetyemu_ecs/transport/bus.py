@@ -345,6 +345,17 @@ class SetGeofence:
 
 
 @dataclass(frozen=True, slots=True)
+class SetFenceEnabled:
+    """Enable (True) or disable (False) the enforcement of the drone's geofence (MAV_CMD_DO_FENCE_ENABLE)."""
+
+    vehicle: str
+    enabled: bool
+    kind: str = "fence_enable"
+    command_id: int = 0
+    source: str = "api"
+
+
+@dataclass(frozen=True, slots=True)
 class SetRallyPoints:
     """Replace the drone's rally points (ENU [m]); RTL goes to the closest of home and these."""
 
@@ -357,7 +368,7 @@ class SetRallyPoints:
 
 NAV_COMMANDS = (SetNavMode, Takeoff, Land, ReturnToLaunch, SetParam, SetHome, ChangeSpeed, StoreMission,
                 StartMission, SetMissionCurrent, PauseMission, Gripper, Terminate, OffboardSetpoint,
-                ManualControl, Orbit, FollowTargetFix, SetGeofence, SetRallyPoints)
+                ManualControl, Orbit, FollowTargetFix, SetGeofence, SetFenceEnabled, SetRallyPoints)
 
 # Streamed kinds: only the newest per vehicle and kind matters (a 50 Hz stick stream must not queue up);
 # every other command is applied in order, so none is silently superseded.
@@ -367,7 +378,7 @@ STREAM_KINDS = frozenset({"teleop", "cmd_vel", "offboard", "manual_control", "fo
 Command = (SetTarget | LoadMission | Teleop | Arm | Drive | CmdVel | DriveRoute | SetNavMode | Takeoff
            | Land | ReturnToLaunch | SetParam | SetHome | ChangeSpeed | StoreMission | StartMission
            | SetMissionCurrent | PauseMission | Gripper | Terminate | OffboardSetpoint | ManualControl
-           | Orbit | FollowTargetFix | SetGeofence | SetRallyPoints)
+           | Orbit | FollowTargetFix | SetGeofence | SetFenceEnabled | SetRallyPoints)
 
 
 @dataclass(frozen=True, slots=True)

@@ -22,7 +22,7 @@ from ...command_checks import (check_change_speed, check_in_world, check_land_xy
 from ...frames import frd_to_flu, ned_to_enu, yaw_ned_to_enu_rad
 from ...geodesy import GeodeticOrigin, enu_to_geodetic, geodetic_to_enu
 from ...navigation.params import PARAM_BY_NAME, PX4_PARAMS, check_param, default_values
-from ...systems.flight_state import NavState
+from ...systems.flight_state import ARM_BLOCK_TEXT, ArmBlock, NavState
 from .. import bus
 from ..api import CommandResult, CommandStatus, Snapshot
 from . import px4
@@ -48,7 +48,7 @@ INT32_MAX = 2**31 - 1
 CMD_NAV_WAYPOINT, CMD_LOITER_UNLIM, CMD_RTL, CMD_LAND, CMD_TAKEOFF, CMD_ORBIT = 16, 17, 20, 21, 22, 34
 CMD_DO_SET_MODE, CMD_DO_CHANGE_SPEED, CMD_DO_SET_HOME, CMD_DO_FLIGHTTERMINATION = 176, 178, 179, 185
 CMD_DO_REPOSITION, CMD_DO_PAUSE_CONTINUE, CMD_DO_GRIPPER, CMD_DO_SET_MISSION_CURRENT = 192, 193, 211, 224
-CMD_MISSION_START, CMD_ARM_DISARM = 300, 400
+CMD_DO_FENCE_ENABLE, CMD_MISSION_START, CMD_ARM_DISARM, CMD_RUN_PREARM_CHECKS = 207, 300, 400, 401
 CMD_GET_MESSAGE_INTERVAL, CMD_SET_MESSAGE_INTERVAL, CMD_REQUEST_MESSAGE = 510, 511, 512
 CMD_REQUEST_AUTOPILOT_CAPABILITIES = 520
 
@@ -404,6 +404,15 @@ class DroneEndpoint:
             if p[1] not in (0.0, 1.0):
                 raise Denied("param2 must be 0 (release) or 1 (grab)")
             return bus.Gripper(v, p[1] == 1.0, **mk)
+        if cmd == CMD_DO_FENCE_ENABLE:
+            if p[0] == 2.0:
+                raise Denied("disabling only the fence floor (param1 2) is not supported")
+            if p[0] not in (0.0, 1.0):
+                raise Denied(f"param1 must be 0 (disable) or 1 (enable), got {p[0]}")
+            return bus.SetFenceEnabled(v, p[0] == 1.0, **mk)
+        if cmd == CMD_RUN_PREARM_CHECKS:
+            self.prearm_report(link, addr, src)
+            return None
         if cmd == CMD_DO_FLIGHTTERMINATION:
             if p[0] != 1.0:
                 raise Denied("param1 must be 1 to terminate the flight")
@@ -414,6 +423,20 @@ class DroneEndpoint:
             return None
         self.ack(link, addr, src, cmd, px4.UNSUPPORTED)
         return None
+
+    def prearm_report(self, link: Link, addr: tuple[str, int], src: tuple[int, int]) -> None:
+        """MAV_CMD_RUN_PREARM_CHECKS: ACCEPTED, then the verdict of the simulation's arming checks in the
+        newest snapshot (``arm_block``, the check the Arm command applies) as a STATUSTEXT, like PX4."""
+        view = self.current_view()
+        if view is None:
+            self.ack(link, addr, src, CMD_RUN_PREARM_CHECKS, px4.TEMPORARILY_REJECTED, "no state yet")
+            return
+        self.ack(link, addr, src, CMD_RUN_PREARM_CHECKS, px4.ACCEPTED)
+        if view.arm_block == ArmBlock.NONE:
+            self.statustext("Preflight checks passed", SEVERITY_INFO)
+            return
+        why = ARM_BLOCK_TEXT.get(view.arm_block, f"arming check {view.arm_block}")
+        self.statustext(f"Preflight Fail: {why}", SEVERITY_CRITICAL)
 
     def local_command(self, cmd: int, p: list[float], link: Link, addr: tuple[str, int],
                       src: tuple[int, int]) -> None:

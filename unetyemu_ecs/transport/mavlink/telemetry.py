@@ -10,6 +10,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from ...frames import enu_to_ned, euler_rpy_from_quat_xyzw, flu_to_frd, quat_enu_flu_to_ned_frd, quat_xyzw_to_wxyz
 from ...geodesy import GeodeticOrigin, enu_to_geodetic
+from ...systems.flight_state import ArmBlock
 from ..api import Snapshot
 from . import px4
 
@@ -63,6 +64,7 @@ class RowView:
         self.energy_used_j = float(_get(snap, "energy_used_j", row, 0.0))
         self.remaining_time_s = float(_get(snap, "remaining_time_s", row, math.inf))
         self.low_battery = bool(_get(snap, "low_battery", row, False))
+        self.arm_block = int(_get(snap, "arm_block", row, ArmBlock.LOW_BATTERY if self.low_battery else 0))
         self.voltage_v = CELLS * (3.5 + 0.7 * self.soc)
 
     @property
@@ -90,7 +92,7 @@ def build(msgid: int, v: RowView, imu: Any | None) -> mavlink2.MAVLink_message |
             px4.custom_mode(v.nav_state), px4.MAV_STATE_ACTIVE if v.armed else px4.MAV_STATE_STANDBY, 3)
     if msgid == 1:
         health = px4.SENSORS_PRESENT
-        if not v.low_battery or v.armed:
+        if v.armed or v.arm_block == ArmBlock.NONE:       # PX4: pre-arm checks pass (and set while armed)
             health |= px4.SENSOR_PREARM
         if v.low_battery:
             health &= ~px4.SENSOR_BATTERY
