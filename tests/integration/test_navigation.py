@@ -222,6 +222,7 @@ def test_rtl_climbs_to_rtl_return_alt_and_lands_within_1_m_of_home():
     assert sim.landed_state("d1") == "ON_GROUND" and sim.nav_state("d1") == "HOLD"
 
 
+@pytest.mark.slow
 def test_rtl_goes_to_the_closest_rally_point():
     sim = make_sim()
     sim.set_param("d1", "RTL_RETURN_ALT", 4.0)
@@ -265,6 +266,7 @@ def test_a_stored_mission_waits_then_takes_off_first_flies_and_returns_home():
     assert any("mission step 0 (cruise) done" in text for _, _, text in sim.events)
 
 
+@pytest.mark.slow
 def test_pause_holds_and_resume_continues_the_mission():
     sim = make_sim()
     sim.load_mission("d1", '[{"type": "takeoff", "altitude_m": 3}, '
@@ -388,6 +390,7 @@ def test_terminate_stops_the_motors_in_the_air_and_the_drone_falls():
     assert sim.position_enu_m("d1")[2] < 0.5
 
 
+@pytest.mark.slow
 def test_rtl_flies_to_a_home_set_by_command():
     sim = make_sim()
     sim.set_param("d1", "RTL_RETURN_ALT", 4.0)
@@ -400,6 +403,7 @@ def test_rtl_flies_to_a_home_set_by_command():
     assert np.linalg.norm(sim.position_enu_m("d1")[:2] - (10.0, -5.0)) < 1.0
 
 
+@pytest.mark.slow
 def test_change_speed_slows_the_leg_being_flown():
     sim = make_sim()
     fly_up(sim, 3.0)
@@ -411,6 +415,7 @@ def test_change_speed_slows_the_leg_being_flown():
     assert sim.velocity_enu_m_s("d1")[0] == pytest.approx(2.0, abs=0.3)
 
 
+@pytest.mark.slow
 def test_set_mission_current_skips_to_that_step():
     sim = make_sim()
     sim.store_mission("d1", '[{"type": "idle", "duration_s": 100}, {"type": "takeoff", "altitude_m": 2}]')
@@ -474,6 +479,7 @@ def test_posctl_flies_the_sticks_holds_when_centred_and_fails_safe_when_they_sto
     assert any("manual control lost" in text for _, _, text in sim.events)
 
 
+@pytest.mark.slow
 def test_orbit_circles_the_centre_at_the_radius_facing_it():
     sim = make_sim()
     fly_up(sim, 5.0)
@@ -493,6 +499,7 @@ def test_orbit_circles_the_centre_at_the_radius_facing_it():
     assert swept == pytest.approx(-2.0 / 5.0 * 10.0, rel=0.2)      # clockwise at 2 m/s on r = 5 m for 10 s
 
 
+@pytest.mark.slow
 def test_follow_target_keeps_behind_a_moving_target_at_flw_tgt_dst_and_ht():
     sim = make_sim()
     sim.set_param("d1", "FLW_TGT_HT", 8.0)
@@ -535,6 +542,7 @@ def test_geofence_breach_holds_and_arming_outside_is_refused():
     assert (res.status, res.reason) == (CommandStatus.REJECTED_STATE, "outside_fence")
 
 
+@pytest.mark.slow
 def test_geofence_action_warning_only_warns_and_return_flies_home():
     from unetyemu_ecs.navigation.geofence import Geofence
 
