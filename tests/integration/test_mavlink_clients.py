@@ -29,6 +29,8 @@ from ..conftest import REPO_ROOT, WORLDS, unetyemu_command
 from .mavlink_client import Client, free_ports
 
 EXAMPLES = REPO_ROOT / "examples"
+NATIVE_FLIGHT = Path(__file__).with_name("mavsdk_native_flight.py")
+MAVSDK_NATIVE = "mavsdk==4.1.0"      # MAVSDK-Python's native (ctypes) binding; the test extra pins the gRPC 3.x
 PX4_AUTO_LOITER = 3 << 24 | 4 << 16      # PX4 custom mode AUTO.LOITER (HOLD): sub 3, main 4
 
 
@@ -234,6 +236,32 @@ def _fuzz(port: int, count: int, stop: threading.Event, sent: list[int]) -> None
                 time.sleep(0.05)          # about 300 per second: the garbage spans the first half minute of flight
     finally:
         sock.close()
+
+
+def test_mavsdk_native_binding_takes_off_lands_and_disarms_a_drone(pair, tmp_path):
+    # GIVEN MAVSDK-Python's native binding (4.x) in a private folder (it shares the name `mavsdk` with
+    # the gRPC 3.x the test extra pins), and the two-drone world running
+    site = tmp_path / "mavsdk4"
+    pip = subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--target", str(site),
+                          MAVSDK_NATIVE], capture_output=True, text=True, timeout=600)
+    assert pip.returncode == 0, pip.stderr[-2000:]
+    ports, start = pair
+    sim = start(150.0)
+    # WHEN it connects to drone 0's API link, sets the takeoff altitude, arms, takes off and lands
+    env = {**os.environ, "PYTHONPATH": str(site)}
+    proc = subprocess.run([sys.executable, str(NATIVE_FLIGHT), str(ports["api_remote"])], env=env,
+                          capture_output=True, text=True, timeout=180, start_new_session=True)
+    summary = sim.stop()
+    # THEN every step was reached, and the simulator flew it: up to MIS_TAKEOFF_ALT = 4 m (set by
+    # MAVSDK), down again, disarmed two seconds after touchdown
+    assert proc.returncode == 0, proc.stdout + proc.stderr[-3000:]
+    steps = {s["step"]: s for s in map(json.loads, (line for line in proc.stdout.splitlines() if line.startswith("{")))}
+    assert list(steps) == ["connected", "took_off", "landed_and_disarmed"]
+    assert steps["connected"]["system_id"] == 1 and steps["took_off"]["in_air"]
+    rows = sim.log("drone_a")
+    assert 3.5 < max(float(r["z_m"]) for r in rows) < 4.6 and rows[-1]["mode"] == "disarmed"
+    events = [e["text"] for e in summary["events"] if e["entity"] == "drone_a"]
+    assert "parameter MIS_TAKEOFF_ALT set to 4" in events and "disarmed: landed 2 s ago (COM_DISARM_LAND)" in events
 
 
 @pytest.mark.slow

@@ -1,0 +1,56 @@
+"""Fly one drone with MAVSDK-Python's native binding (mavsdk 4.x, ctypes; no mavsdk_server): connect,
+wait for a home position, set the takeoff altitude, wait until armable, arm, take off, land, wait for the auto-disarm.
+Usage: python native_flight.py UDP_PORT   (the port the drone's API link sends to)
+Prints one JSON line per step."""
+
+import asyncio
+import json
+import sys
+import time
+
+from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
+from mavsdk.asyncio.plugins.action import ActionAsync
+from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
+
+T0 = time.monotonic()
+
+
+def log(step, **data):
+    print(json.dumps({"step": step, "wall_s": round(time.monotonic() - T0, 2), **data}), flush=True)
+
+
+async def until(get, pred, timeout_s=60.0):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        value = await get()
+        if pred(value):
+            return value
+        await asyncio.sleep(0.2)
+    raise TimeoutError(f"{get.__name__} did not reach the expected value")
+
+
+async def main(port: int) -> None:
+    config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
+    async with Mavsdk(config) as mavsdk:
+        await mavsdk.add_any_connection(f"udpin://127.0.0.1:{port}")
+        system = await mavsdk.first_autopilot(timeout_s=20.0)
+        if system is None:
+            raise TimeoutError("no autopilot found")
+        action, telemetry = ActionAsync(system), TelemetryAsync(system)
+        home = await until(telemetry.home, lambda h: h.absolute_altitude_m == h.absolute_altitude_m)   # not NaN
+        log("connected", system_id=await system.get_system_id(), home_alt_m=home.absolute_altitude_m)
+        await action.set_takeoff_altitude(4.0)
+        await until(telemetry.landed_state, lambda state: state.name == "ON_GROUND")   # settled after spawning
+        await until(telemetry.health, lambda h: h.is_armable)      # and PX4's pre-arm checks pass
+        await action.arm()
+        await action.takeoff()
+        pos = await until(telemetry.position, lambda p: p.relative_altitude_m > 3.5)
+        log("took_off", relative_alt_m=pos.relative_altitude_m, in_air=await telemetry.in_air())
+        await action.land()
+        await until(telemetry.armed, lambda armed: not armed, 90.0)
+        pos = await telemetry.position()
+        log("landed_and_disarmed", relative_alt_m=pos.relative_altitude_m)
+
+
+if __name__ == "__main__":
+    asyncio.run(main(int(sys.argv[1])))
