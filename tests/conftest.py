@@ -58,16 +58,3 @@ def write_world(tmp_path: Path):
         return path
 
     return _write
-
-
-# Modules whose simulations or peers join DDS domain 0 on this host: run them on one pytest-xdist
-# worker, one after the other (`-n 2 --dist loadgroup`, the README's test command), so that two
-# tests never see each other's ROS 2 nodes.
-DDS_MODULES = ("test_ros2_", "test_cli.py")
-
-
-@pytest.hookimpl(tryfirst=True)          # before xdist's loadgroup reads the marks
-def pytest_collection_modifyitems(config, items):
-    for item in items:
-        if item.path.name.startswith(DDS_MODULES):
-            item.add_marker(pytest.mark.xdist_group("dds"))

@@ -16,6 +16,8 @@ from unetyemu_ecs.sensors.lidar import read_points
 from unetyemu_ecs.sensors.messages import deserialize, serialize
 from unetyemu_ecs.transport.ros2.inbound import COMMAND_TOPICS
 
+pytestmark = pytest.mark.xdist_group("dds")     # joins DDS domain 0: one worker runs these in turn
+
 LISTENER = Path(__file__).resolve().parent.parent / "ros2_peer" / "listen.py"
 
 WORLD = """
