@@ -16,6 +16,13 @@ import pytest
 # discovery tests run their own participants in `unshare -n` with the variable of their choice.
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
+# Each pytest-xdist worker (gw0, gw1, ...) runs its simulators and ROS 2 peers on a DDS domain of its
+# own (ROS_DOMAIN_ID 20 + worker number), so two ROS 2 tests running at once on two workers never
+# see each other's vehicles; the peers in tests/ros2_peer and tests/fastdds_peer read the same variable.
+_WORKER = os.environ.get("PYTEST_XDIST_WORKER", "")
+if _WORKER.startswith("gw") and _WORKER[2:].isdigit():
+    os.environ.setdefault("ROS_DOMAIN_ID", str(20 + int(_WORKER[2:])))
+
 REPO_ROOT = Path(__file__).resolve().parents[1]
 WORLDS = REPO_ROOT / "worlds"
 

@@ -42,7 +42,7 @@ def test_second_command_installs_test_extras_and_runs_pytest_from_the_venv():
     for package in ("python3-venv", "python3-dev", "g++", "libusb-1.0-0", "libgl1", "libegl1", "libfastrtps-dev"):
         assert f" {package} " in second, package
     assert "python3 -m venv .venv && .venv/bin/pip install -e '.[test]' &&" in second
-    assert second.endswith(" && .venv/bin/python -m pytest -n 2 --dist loadgroup")
+    assert second.endswith(" && .venv/bin/python -m pytest -n 2 --dist loadfile")
 
 
 def test_ci_runs_the_readme_test_command():

@@ -15,8 +15,6 @@ import pytest
 
 from ..conftest import REPO_ROOT, WORLDS, unetyemu_command
 
-pytestmark = pytest.mark.xdist_group("dds")     # joins DDS domain 0: one worker runs these in turn
-
 
 def unetyemu(*args: str, cwd: Path = REPO_ROOT, timeout: float = 300) -> subprocess.CompletedProcess:
     cmd = unetyemu_command()

@@ -16,7 +16,6 @@ from unetyemu_ecs.sensors.lidar import read_points
 from unetyemu_ecs.sensors.messages import deserialize, serialize
 from unetyemu_ecs.transport.ros2.inbound import COMMAND_TOPICS
 
-pytestmark = pytest.mark.xdist_group("dds")     # joins DDS domain 0: one worker runs these in turn
 
 LISTENER = Path(__file__).resolve().parent.parent / "ros2_peer" / "listen.py"
 
@@ -264,7 +263,7 @@ def test_world_file_switches_take_a_vehicle_or_a_sensor_off_ros2_and_rename_a_to
     from cyclonedds.pub import DataWriter
     from cyclonedds.topic import Topic
 
-    from unetyemu_ecs.transport.ros2.dds_backend import DdsPublisher, dds_topic_name
+    from unetyemu_ecs.transport.ros2.dds_backend import DdsPublisher, dds_topic_name, domain_from_env
     from unetyemu_ecs.transport.ros2.dds_types import idl_type
 
     with Simulation(load_world_text(SWITCHES_WORLD), ros2="dds") as sim:
@@ -277,7 +276,7 @@ def test_world_file_switches_take_a_vehicle_or_a_sensor_off_ros2_and_rename_a_to
         assert not [t for t in topics if t.startswith("/c1/")]
         assert sim.sensor("d1", "lidar") is not None and sim.sensor("c1", "gps") is not None
         # AND from the outside: a Twist writer finds a reader on /d1/cmd_vel and none on /c1/cmd_vel
-        dp = DomainParticipant(0)
+        dp = DomainParticipant(domain_from_env())
         twist = idl_type("geometry_msgs/msg/Twist")
         writers = {v: DataWriter(dp, Topic(dp, dds_topic_name(f"/{v}/cmd_vel"), twist,
                                            qos=DdsPublisher.qos_for("/x")), qos=DdsPublisher.qos_for("/x"))

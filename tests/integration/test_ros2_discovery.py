@@ -15,7 +15,6 @@ import pytest
 from unetyemu_ecs.transport.ros2.dds_backend import (LOOPBACK_CONFIG, Ros2Error, dds_config,
                                                      discovery_range_from_env, static_peers_from_env)
 
-pytestmark = pytest.mark.xdist_group("dds")     # joins DDS domain 0: one worker runs these in turn
 
 DRIVER = Path(__file__).resolve().parent.parent / "ros2_peer" / "netns_discovery.py"
 LARGE_MESSAGE_SETTINGS = ("<MaxMessageSize>65000B</MaxMessageSize>", "<FragmentSize>62000B</FragmentSize>",

@@ -21,7 +21,6 @@ from unetyemu_ecs import Simulation, load_world_text
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "fastdds_peer"))
 from peer_build import PeerBuildError, build_peer  # noqa: E402
 
-pytestmark = pytest.mark.xdist_group("dds")     # joins DDS domain 0: one worker runs these in turn
 
 WORLD = """
 world: {name: fastdds, physics_hz: 240, seed: 11}

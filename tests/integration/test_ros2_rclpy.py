@@ -13,7 +13,6 @@ import pytest
 
 from unetyemu_ecs import Simulation, load_world_text
 
-pytestmark = pytest.mark.xdist_group("dds")     # joins DDS domain 0: one worker runs these in turn
 
 rclpy = pytest.importorskip("rclpy", reason="rclpy backend: needs a sourced ROS 2 Jazzy")
 

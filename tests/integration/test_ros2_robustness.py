@@ -22,7 +22,6 @@ from hypothesis import strategies as st
 from unetyemu_ecs import Simulation, load_world_text
 from unetyemu_ecs.sensors.messages import deserialize, msg_type, serialize, typestore
 
-pytestmark = pytest.mark.xdist_group("dds")     # joins DDS domain 0: one worker runs these in turn
 
 PROBE = Path(__file__).resolve().parent.parent / "ros2_peer" / "probe.py"
 ROOT = Path(__file__).resolve().parents[2]

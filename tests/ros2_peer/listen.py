@@ -10,6 +10,7 @@ ros_discovery_info samples and writers (their USER_DATA).
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 
@@ -27,6 +28,10 @@ from rosbags.typesys.base import Nodetype
 CONFIG = """<CycloneDDS><Domain id="any"><General><Interfaces><NetworkInterface name="lo"/></Interfaces>
 <AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto</ParticipantIndex>
 <MaxAutoParticipantIndex>100</MaxAutoParticipantIndex><Peers><Peer address="127.0.0.1"/></Peers></Discovery></Domain></CycloneDDS>"""
+
+# the DDS domain the simulator under test uses: ROS_DOMAIN_ID, as the simulator reads it (tests/conftest.py
+# gives each pytest-xdist worker a domain of its own)
+DOMAIN = int(os.environ.get("ROS_DOMAIN_ID", "").strip() or 0)
 
 TS = get_typestore(Stores.ROS2_JAZZY)
 BASE = {"bool": bool, "byte": t.uint8, "char": t.uint8, "int8": t.int8, "uint8": t.uint8, "int16": t.int16,
@@ -63,8 +68,8 @@ def qos_for(topic: str) -> Qos:
 def main() -> None:
     seconds = float(sys.argv[1])
     wanted = dict(arg.split("=", 1) for arg in sys.argv[2:])
-    _domain = Domain(0, CONFIG)  # noqa: F841  (keeps the configuration alive)
-    dp = DomainParticipant(0)
+    _domain = Domain(DOMAIN, CONFIG)  # noqa: F841  (keeps the configuration alive)
+    dp = DomainParticipant(DOMAIN)
     readers = {}
     for topic, type_name in wanted.items():
         readers[topic] = DataReader(dp, Topic(dp, "rt" + topic, idl(type_name)), qos=qos_for(topic))

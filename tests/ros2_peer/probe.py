@@ -33,7 +33,7 @@ from cyclonedds.topic import Topic
 from cyclonedds.util import duration
 from rosbags.typesys import get_types_from_msg
 
-from listen import CONFIG, TS, field, idl, qos_for  # noqa: E402  (same folder)
+from listen import CONFIG, DOMAIN, TS, field, idl, qos_for  # noqa: E402  (same folder)
 
 
 def raw_write(writer: DataWriter, data: bytes) -> bool:
@@ -56,7 +56,7 @@ def wait_for_clock(dp: DomainParticipant, seconds: float) -> None:
 
 def write(seconds: float, path: str) -> None:
     payloads = json.load(open(path))
-    dp = DomainParticipant(0)
+    dp = DomainParticipant(DOMAIN)
     print("ready", flush=True)
     wait_for_clock(dp, seconds)
     writers: dict[str, DataWriter] = {}
@@ -83,7 +83,7 @@ def write(seconds: float, path: str) -> None:
 
 
 def late(seconds: float, wanted: dict[str, str]) -> None:
-    dp = DomainParticipant(0)
+    dp = DomainParticipant(DOMAIN)
     qos = Qos(Policy.Reliability.Reliable(duration(seconds=1)), Policy.Durability.TransientLocal,
               Policy.History.KeepLast(1000))
     readers = {topic: DataReader(dp, Topic(dp, "rt" + topic, idl(ty)), qos=qos) for topic, ty in wanted.items()}
@@ -114,7 +114,7 @@ CLIENT_ID = 0x1234_5678_9ABC_DEF0
 def params(seconds: float) -> None:
     import numpy as np
 
-    dp = DomainParticipant(0)
+    dp = DomainParticipant(DOMAIN)
     for _, (srv, request, response) in SERVICES.items():
         for part, text in (("Request", request), ("Response", response)):
             (parsed,) = get_types_from_msg(text, f"rcl_interfaces/msg/{srv}_{part}").values()
@@ -189,7 +189,7 @@ def to_json(msg):
 
 
 def main() -> None:
-    _domain = Domain(0, CONFIG)  # noqa: F841  (keeps the configuration alive)
+    _domain = Domain(DOMAIN, CONFIG)  # noqa: F841  (keeps the configuration alive)
     mode, seconds = sys.argv[1], float(sys.argv[2])
     if mode == "write":
         write(seconds, sys.argv[3])

@@ -18,7 +18,7 @@ from cyclonedds.pub import DataWriter
 from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 
-from listen import CONFIG, idl, qos_for  # noqa: E402  (same folder)
+from listen import CONFIG, DOMAIN, idl, qos_for  # noqa: E402  (same folder)
 
 
 def build(type_name: str, fields: dict):
@@ -37,8 +37,8 @@ def build(type_name: str, fields: dict):
 
 def main() -> None:
     seconds, commands = float(sys.argv[1]), json.loads(sys.argv[2])
-    _domain = Domain(0, CONFIG)  # noqa: F841  (keeps the configuration alive)
-    dp = DomainParticipant(0)
+    _domain = Domain(DOMAIN, CONFIG)  # noqa: F841  (keeps the configuration alive)
+    dp = DomainParticipant(DOMAIN)
     clock = DataReader(dp, Topic(dp, "rt/clock", idl("rosgraph_msgs/msg/Clock")), qos=qos_for("/clock"))
     rosout = DataReader(dp, Topic(dp, "rt/rosout", idl("rcl_interfaces/msg/Log")), qos=qos_for("/rosout"))
     status_topics = sorted({c[0].rsplit("/", 1)[0] + "/mission/status" for c in commands if c[0].endswith("/mission")})
