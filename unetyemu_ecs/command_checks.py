@@ -47,6 +47,7 @@ MAX_YAW_RATE_RAD_S = 2 * math.pi  # a turn a second: beyond any drone's or car's
 # Laps of a looping car route (0 = forever): 10 000 laps of a 100 m loop at 30 m/s take 9 h of sim
 # time; a larger number is a typo for 0.
 MAX_YAW_DEG = 360.0               # a heading: one turn either way is every heading there is
+MAX_ATTITUDE_DEG = 80.0           # an OFFBOARD roll or pitch: near 90 deg ZYX Euler angles degenerate
 MAX_LAPS = 10_000
 
 
@@ -343,6 +344,35 @@ def check_offboard_setpoint(vehicle: str, layout: SceneLayout, pos: Sequence[flo
     return (checked_pos, velocity("vel_enu", vel_enu), velocity("vel_flu", vel_flu),
             None if yaw_deg is None else math.radians(yaw_deg),
             None if yaw_rate_rad_s is None else float(yaw_rate_rad_s))
+
+
+def check_offboard_attitude(vehicle: str, roll_deg: float, pitch_deg: float, thrust: float,
+                            yaw_deg: float | None = None, yaw_rate_rad_s: float | None = None
+                            ) -> tuple[float | None, float | None, tuple[float, float], float]:
+    """One OFFBOARD attitude setpoint: roll and pitch [deg] of the body (FLU) in ENU, ZYX Euler, right side
+    down and nose down positive, each within +-``MAX_ATTITUDE_DEG`` (beyond it the Euler angles of a
+    multirotor stop meaning a tilt); collective ``thrust`` in [0, 1], a fraction of the four motors'
+    maximum; a heading (deg ENU, one turn either way) or a yaw rate (+-MAX_YAW_RATE_RAD_S), not both
+    (neither: no turn). Returns ``(yaw_rad, yaw_rate_rad_s, (roll_rad, pitch_rad), thrust)``."""
+    what = f"offboard_attitude({vehicle!r})"
+    for name, value in (("roll_deg", roll_deg), ("pitch_deg", pitch_deg)):
+        if not (is_real(value) and math.isfinite(value) and abs(value) <= MAX_ATTITUDE_DEG):
+            raise ValueError(f"{what}: {name} must be a number in [-{MAX_ATTITUDE_DEG:g}, {MAX_ATTITUDE_DEG:g}], "
+                             f"got {value!r}")
+    if not (is_real(thrust) and 0.0 <= thrust <= 1.0):
+        raise ValueError(f"{what}: thrust must be a number in [0, 1] (fraction of full collective thrust), "
+                         f"got {thrust!r}")
+    if yaw_deg is not None and yaw_rate_rad_s is not None:
+        raise ValueError(f"{what}: give a yaw or a yaw rate, not both")
+    if yaw_deg is not None and not (is_real(yaw_deg) and math.isfinite(yaw_deg) and abs(yaw_deg) <= MAX_YAW_DEG):
+        raise ValueError(f"{what}: yaw_deg must be a number in [-{MAX_YAW_DEG:g}, {MAX_YAW_DEG:g}], got {yaw_deg!r}")
+    if yaw_rate_rad_s is not None and not (is_real(yaw_rate_rad_s) and math.isfinite(yaw_rate_rad_s)
+                                           and abs(yaw_rate_rad_s) <= MAX_YAW_RATE_RAD_S):
+        raise ValueError(f"{what}: yaw_rate_rad_s must be within +-{MAX_YAW_RATE_RAD_S:g} rad/s, "
+                         f"got {yaw_rate_rad_s!r}")
+    return (None if yaw_deg is None else math.radians(yaw_deg),
+            None if yaw_rate_rad_s is None else float(yaw_rate_rad_s),
+            (math.radians(roll_deg), math.radians(pitch_deg)), float(thrust))
 
 
 MAX_ORBIT_RADIUS_M = 1000.0       # a 1 km circle is already far beyond a multicopter orbit

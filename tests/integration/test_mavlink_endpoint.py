@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import socket
+import time
 
 import numpy as np
 import pytest
@@ -187,6 +188,34 @@ def test_garbage_is_counted_and_never_disturbs_the_next_message_or_the_peer(rig)
     assert n["bad_crc"] >= 2 and n["truncated"] >= 4 and n["unknown_id"] >= 2 and n["oversize"] >= 2
     assert n["bad_prefix"] >= 4 and n["not_for_us"] == 1 and n["peers"] == 1
     assert n["parser_errors"] == 0
+
+
+def test_a_flood_beyond_the_receive_budget_is_dropped_by_the_kernel_and_every_datagram_is_accounted_for(rig):
+    sim, api, _, _ = rig
+    c = api[0]
+    wait_for(sim, c, "HEARTBEAT")
+    before = sim.transport_counters()["mavlink"]["d1"]["api"]["rx_datagrams"]
+    # WHEN 30 000 PINGs arrive as fast as one socket can send them (the link reads 1000 datagrams/s)
+    n = 30_000
+    frame = _ping(c, 7)
+    for _ in range(n):
+        c.raw(frame)
+    # THEN once the socket is drained and one more datagram arrived (the kernel stamps its drop count on
+    # the next datagram it queues), what the link read plus what the kernel dropped is what was sent
+    def counted() -> tuple[int, int]:
+        link = sim.transport_counters()["mavlink"]["d1"]["api"]
+        return link["rx_datagrams"] - before, link["rx_kernel_dropped"]
+
+    last, deadline = (-1, -1), time.monotonic() + 60.0
+    while counted() != last and time.monotonic() < deadline:
+        last = counted()
+        time.sleep(0.5)
+    c.drain()
+    c.raw(_ping(c, 99))
+    assert wait_for(sim, c, "PING", lambda m: m.seq == 99) is not None        # AND the link still answers
+    read, dropped = counted()
+    assert read + dropped == n + 1, (read, dropped)
+    assert dropped > 0 and read > 0, (read, dropped)
 
 
 def test_a_port_already_in_use_is_a_clear_error_naming_the_vehicle_and_port(tmp_path):

@@ -71,6 +71,25 @@ def test_offboard_position_velocity_and_body_velocity_setpoints_in_enu(ep):
     assert sp.vel_flu_m_s == pytest.approx((1.0, -2.0, 0.5)) and sp.vel_enu_m_s is None
 
 
+def test_set_attitude_target_becomes_an_enu_attitude_setpoint_with_its_thrust(ep):
+    from unetyemu_ecs.frames import quat_xyzw_from_euler_rpy, quat_xyzw_to_wxyz
+
+    # FRD in NED: roll 5 deg right side down, pitch 10 deg nose UP, heading 90 deg (east); thrust 0.7
+    q = [float(x) for x in quat_xyzw_to_wxyz(quat_xyzw_from_euler_rpy(*np.radians([5.0, 10.0, 90.0])))]
+    handle(ep, mavlink2.MAVLink_set_attitude_target_message(0, 1, 1, 7, q, 0, 0, 0, 0.7))
+    (sp,) = submitted(ep)
+    # -> FLU in ENU: right side down is still +roll, nose up is -pitch, east is heading 0
+    assert sp.attitude_rp_rad == pytest.approx(np.radians([5.0, -10.0]), abs=1e-6)
+    assert sp.yaw_rad == pytest.approx(0.0, abs=1e-6) and sp.thrust_frac == pytest.approx(0.7)
+    assert sp.pos_enu_m is None and sp.vel_enu_m_s is None and sp.vel_flu_m_s is None
+    # rates only (attitude ignored), thrust ignored, a thrust vector (THRUST_BODY_SET), thrust above 1 and a
+    # zero quaternion: refused, nothing submitted
+    for mask, quat, thrust in ((128, q, 0.5), (7 | 64, q, 0.5), (7 | 32, q, 0.5), (7, q, 1.2),
+                               (7, [0.0, 0.0, 0.0, 0.0], 0.5)):
+        handle(ep, mavlink2.MAVLink_set_attitude_target_message(0, 1, 1, mask, quat, 0, 0, 0, thrust))
+    assert submitted(ep) == [] and ep.setpoints_rejected == 5
+
+
 def test_nan_setpoints_and_out_of_range_sticks_are_dropped(ep):
     handle(ep, mavlink2.MAVLink_set_position_target_local_ned_message(0, 1, 1, 1, 0b1001_1111_1000,
                                                                       math.nan, 3, -2, 0, 0, 0, 0, 0, 0, 0, 0))

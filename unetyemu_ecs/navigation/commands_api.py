@@ -71,6 +71,19 @@ class NavigationApi:
         return self.inbox.submit(OffboardSetpoint(name, *cc.check_offboard_setpoint(
             name, self.layout, pos, vel_enu, vel_flu, yaw_deg, yaw_rate_rad_s)))
 
+    def offboard_attitude(self, name: str, roll_deg: float, pitch_deg: float, thrust: float, *,
+                          yaw_deg: float | None = None, yaw_rate_rad_s: float | None = None) -> int:
+        """One attitude setpoint of an OFFBOARD stream (PX4: SET_ATTITUDE_TARGET): ``roll_deg`` (right side
+        down positive) and ``pitch_deg`` (nose down positive) of the body in ENU, a heading ``yaw_deg`` (ENU,
+        CCW from east) or a yaw rate (CCW; neither: no turn), and the collective ``thrust`` as a fraction of
+        the four motors' maximum, applied as it is (no altitude hold: hover needs m g / (4 F_max), more
+        with a tilt or a package). Streamed and lapsing like :meth:`offboard_setpoint`."""
+        self._drone(name)
+        yaw_rad, yaw_rate, rp, thrust_frac = cc.check_offboard_attitude(name, roll_deg, pitch_deg, thrust, yaw_deg,
+                                                                         yaw_rate_rad_s)
+        return self.inbox.submit(OffboardSetpoint(name, yaw_rad=yaw_rad, yaw_rate_rad_s=yaw_rate, attitude_rp_rad=rp,
+                                                  thrust_frac=thrust_frac))
+
     def manual_control(self, name: str, pitch: float, roll: float, throttle: float, yaw: float) -> int:
         """Transmitter sticks (MAVLink MANUAL_CONTROL): ``pitch`` forward, ``roll`` right, ``yaw`` clockwise
         in [-1, 1], ``throttle`` in [0, 1] (0.5 = hold height). Flown in POSCTL (speeds) or MANUAL (tilt);

@@ -12,7 +12,8 @@ layer      phase     reads (fleet arrays)                             writes
 ========== ========= ================================================ =====================================
 position   GUIDANCE  pos_sp_enu_m, vel_sp_enu_m_s, speed_limit_m_s,   vz_sp_m_s, roll_sp_rad, pitch_sp_rad,
                      dist_to_go_m, yaw_sp_rad, yaw_rate_cmd_rad_s     yaw_rate_sp_rad_s
-attitude   STABILIZE those four setpoints (from the sticks in MANUAL)  thrust_frac_sp, torque_cmd
+attitude   STABILIZE those four setpoints (from the sticks in MANUAL;  thrust_frac_sp, torque_cmd
+                     thrust_cmd_frac replaces the thrust in ATTITUDE)
 mixer      ACTUATE   thrust_frac_sp, torque_cmd                       motor_frac_cmd
 drive      STABILIZE car_speed_sp_m_s, car_steer_sp_rad, cmd_vel       car_throttle, car_brake, car_steer_rad
 ========== ========= ================================================ =====================================
@@ -177,7 +178,10 @@ class AttitudeControllerSystem(DroneControllerSystem):
     """Attitude layer: AttitudeSetpoint -> ThrustTorqueCommand for every drone (zero while disarmed).
 
     MANUAL rows take their setpoint from the sticks first (``manual_to_setpoints``), so manual and
-    automatic flight feed the same loops with the same memory: switching causes no jump.
+    automatic flight feed the same loops with the same memory: switching causes no jump. ATTITUDE rows
+    (OFFBOARD attitude + thrust) fly the roll, pitch and yaw rate the navigator wrote with the commanded
+    collective thrust ``thrust_cmd_frac`` in place of the law's: their vertical-speed setpoint is the
+    measured one, so a law's vertical-speed loop neither acts nor winds up meanwhile.
     """
 
     phase = Phase.STABILIZE
@@ -197,10 +201,14 @@ class AttitudeControllerSystem(DroneControllerSystem):
             f.roll_sp_rad[rm] = roll_sp
             f.pitch_sp_rad[rm] = pitch_sp
             f.yaw_rate_sp_rad_s[rm] = yaw_rate_sp
+        attitude = mode == FlightMode.ATTITUDE
+        if attitude.any():
+            f.vz_sp_m_s[r[attitude]] = f.vel_enu_m_s[r[attitude], 2]
         sp = AttitudeSetpoint(f.vz_sp_m_s[r], f.roll_sp_rad[r], f.pitch_sp_rad[r], f.yaw_rate_sp_rad_s[r])
         out: ThrustTorqueCommand = self.call_law(ctx, sp, self.state(ctx, r), self.airframe, self.params, r)
         armed = mode != FlightMode.DISARMED
-        f.thrust_frac_sp[r] = np.where(armed, out.thrust_frac, 0.0)
+        thrust = np.where(attitude, f.thrust_cmd_frac[r], out.thrust_frac) if attitude.any() else out.thrust_frac
+        f.thrust_frac_sp[r] = np.where(armed, thrust, 0.0)
         f.torque_cmd[r] = np.where(armed[:, None], out.torque_cmd, 0.0)
         if not armed.all():
             self.reset_memory(ctx, r[~armed])

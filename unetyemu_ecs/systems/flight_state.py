@@ -22,6 +22,8 @@ class FlightMode(IntEnum):
     MANUAL = 1     # teleop sticks -> stabilizer setpoints
     AUTO = 2       # route / target -> guidance -> stabilizer setpoints
     VELOCITY = 3   # body-frame velocity + yaw rate (ROS cmd_vel) -> guidance velocity loop
+    ATTITUDE = 4   # OFFBOARD roll, pitch, yaw (rate) and collective thrust -> attitude layer; the thrust
+    #                bypasses its vertical-speed loop (MAVLink SET_ATTITUDE_TARGET)
 
 
 class NavState(IntEnum):
@@ -160,6 +162,7 @@ FLIGHT_ARRAYS: dict[str, tuple[tuple[int, ...], type, float]] = {
     "roll_sp_rad": ((), np.float64, 0.0),
     "pitch_sp_rad": ((), np.float64, 0.0),
     "yaw_rate_sp_rad_s": ((), np.float64, 0.0),
+    "thrust_cmd_frac": ((), np.float64, 0.0),         # ATTITUDE mode: commanded collective thrust, fraction of 4 F_max
     # attitude-layer command (control.layers.ThrustTorqueCommand), the mixer's input
     "thrust_frac_sp": ((), np.float64, 0.0),          # collective, fraction of 4 F_max
     "torque_cmd": ((3,), np.float64, 0.0),            # normalised [roll, pitch, yaw]

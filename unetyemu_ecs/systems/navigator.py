@@ -250,8 +250,9 @@ def offboard_fresh(nav: NavRuntime, params: FlightParams, t: float) -> bool:
 
 def fly_offboard(ctx: StepContext, ent: int, row: int, nav: NavRuntime, params: FlightParams, new: bool) -> None:
     """Fly the newest OFFBOARD setpoint: a position on the AUTO path (re-planned when a new one arrives), a
-    velocity (ENU, turned into body FLU with the heading every step, or body FLU) on the VELOCITY path;
-    a heading through a yaw-rate loop, or a yaw rate."""
+    velocity (ENU, turned into body FLU with the heading every step, or body FLU) on the VELOCITY path,
+    an attitude with a collective thrust on the ATTITUDE path (straight to the attitude layer); a heading
+    through a yaw-rate loop, or a yaw rate."""
     from ..frames import yaw_rad_from_quat_xyzw
 
     f = ctx.fleet
@@ -259,6 +260,19 @@ def fly_offboard(ctx: StepContext, ent: int, row: int, nav: NavRuntime, params: 
     if f.flight_mode[row] == FlightMode.DISARMED or sp is None:
         return
     yaw = float(yaw_rad_from_quat_xyzw(f.quat_enu_flu_xyzw[row]))
+    if sp.attitude_rp_rad is not None:
+        if f.flight_mode[row] != FlightMode.ATTITUDE:
+            f.flight_mode[row] = FlightMode.ATTITUDE
+            set_route(f, row, None)
+        f.roll_sp_rad[row], f.pitch_sp_rad[row] = sp.attitude_rp_rad
+        f.thrust_cmd_frac[row] = sp.thrust_frac
+        if sp.yaw_rate_rad_s is not None:
+            f.yaw_rate_sp_rad_s[row] = sp.yaw_rate_rad_s
+        elif sp.yaw_rad is not None:
+            f.yaw_rate_sp_rad_s[row] = _yaw_rate_to(sp.yaw_rad, yaw, params)
+        else:
+            f.yaw_rate_sp_rad_s[row] = 0.0
+        return
     if sp.pos_enu_m is not None:
         if new or f.flight_mode[row] != FlightMode.AUTO:
             lim = esper.component_for_entity(ent, GuidanceLimits)

@@ -272,11 +272,15 @@ class Terminate:
 
 @dataclass(frozen=True, slots=True)
 class OffboardSetpoint:
-    """One setpoint of an OFFBOARD stream (PX4: SET_POSITION_TARGET_*). Each part None = not set.
+    """One setpoint of an OFFBOARD stream (PX4: SET_POSITION_TARGET_*, SET_ATTITUDE_TARGET). Each part
+    None = not set.
 
     pos_enu_m : position [m]; vel_enu_m_s : world-frame velocity [m/s]; vel_flu_m_s : body-frame
     velocity [m/s] (forward, left, up), rotated with the heading each step; yaw_rad : heading;
-    yaw_rate_rad_s : CCW. The stream keeps OFFBOARD alive; it lapses after COM_OF_LOSS_T.
+    yaw_rate_rad_s : CCW; attitude_rp_rad : (roll, pitch) of FLU in ENU (ZYX Euler, right side down and
+    nose down positive), flown with ``thrust_frac`` (collective thrust as a fraction of the four motors'
+    maximum) by the attitude layer, bypassing the position layer. The stream keeps OFFBOARD alive; it
+    lapses after COM_OF_LOSS_T.
     """
 
     vehicle: str
@@ -285,6 +289,8 @@ class OffboardSetpoint:
     vel_flu_m_s: tuple[float, float, float] | None = None
     yaw_rad: float | None = None
     yaw_rate_rad_s: float | None = None
+    attitude_rp_rad: tuple[float, float] | None = None
+    thrust_frac: float | None = None
     kind: str = "offboard"
     command_id: int = 0
     source: str = "api"

@@ -88,6 +88,7 @@ class RxCounters:
     not_for_us: int = 0
     parser_errors: int = 0
     rx_rate_limited: int = 0
+    rx_kernel_dropped: int = 0     # datagrams the kernel dropped, its receive buffer full (Linux SO_RXQ_OVFL)
 
     def as_dict(self) -> dict[str, int]:
         return dict(vars(self))

@@ -18,8 +18,10 @@ import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
 
 from ...command_checks import (check_change_speed, check_in_world, check_land_xy, check_mission_step,
-                               check_offboard_setpoint, check_position, check_set_target, check_takeoff)
-from ...frames import frd_to_flu, ned_to_enu, yaw_ned_to_enu_rad
+                               check_offboard_attitude, check_offboard_setpoint, check_position, check_set_target,
+                               check_takeoff)
+from ...frames import (euler_rpy_from_quat_xyzw, frd_to_flu, ned_to_enu, quat_ned_frd_to_enu_flu,
+                       quat_wxyz_to_xyzw, yaw_ned_to_enu_rad)
 from ...geodesy import GeodeticOrigin, enu_to_geodetic, geodetic_to_enu
 from ...navigation.params import PARAM_BY_NAME, PX4_PARAMS, check_param, default_values
 from ...systems.flight_state import ARM_BLOCK_TEXT, ArmBlock, NavState
@@ -51,6 +53,9 @@ CMD_DO_REPOSITION, CMD_DO_PAUSE_CONTINUE, CMD_DO_GRIPPER, CMD_DO_SET_MISSION_CUR
 CMD_DO_FENCE_ENABLE, CMD_MISSION_START, CMD_ARM_DISARM, CMD_RUN_PREARM_CHECKS = 207, 300, 400, 401
 CMD_GET_MESSAGE_INTERVAL, CMD_SET_MESSAGE_INTERVAL, CMD_REQUEST_MESSAGE = 510, 511, 512
 CMD_REQUEST_AUTOPILOT_CAPABILITIES = 520
+
+# SET_ATTITUDE_TARGET type_mask bits (ATTITUDE_TARGET_TYPEMASK)
+ATT_THRUST_BODY_SET, ATT_IGNORE_THRUST, ATT_IGNORE_ATTITUDE = 32, 64, 128
 
 GLOBAL_FRAMES = {0: "amsl", 3: "relative", 5: "amsl", 6: "relative"}    # GLOBAL, GLOBAL_RELATIVE_ALT, *_INT
 
@@ -146,6 +151,7 @@ class DroneEndpoint:
         self.commands = {"accepted": 0, "rejected": 0, "unsupported": 0, "denied": 0, "expired": 0}
         self.unhandled_messages = 0
         self.setpoints_rejected = 0
+        self.said_attitude_rates = False
         self.missions = None
         self.mission_ids: set[int] = set()
         if MissionService is not None:
@@ -224,6 +230,8 @@ class DroneEndpoint:
             self.on_position_target_local(msg)
         elif mid == 86:
             self.on_position_target_global(msg)
+        elif mid == 82:
+            self.on_attitude_target(msg, link)
         elif mid == 69:
             self.on_manual_control(msg)
         elif mid == 144:
@@ -364,7 +372,7 @@ class DroneEndpoint:
             speed = 1.0 if math.isnan(p[1]) else p[1]
             if not (_finite(radius, speed) and 1.0 <= abs(radius) <= 10_000.0 and 0.0 < abs(speed) <= MAX_SPEED_M_S):
                 raise Denied(f"orbit radius {radius} m / speed {p[1]} m/s out of range")
-            behaviour = 0 if math.isnan(p[2]) else int(p[2])
+            behaviour = 0 if math.isnan(p[2]) else int(p[2]) if _finite(p[2]) else -1
             if not 0 <= behaviour <= 4:
                 raise Denied(f"orbit yaw behaviour {p[2]} unknown")
             center = check_position(f"orbit({v!r})", self.layout, self._enu(p[4], p[5], p[6]))
@@ -547,6 +555,36 @@ class DroneEndpoint:
             self.setpoints_rejected += 1
             return
         self.submit(bus.OffboardSetpoint(self.vehicle, *parts, source="mavlink"))
+
+    def on_attitude_target(self, msg: Any, link: Link) -> None:
+        """SET_ATTITUDE_TARGET: attitude ``q`` (FRD in NED, w x y z) with the normalised collective
+        ``thrust`` is an OFFBOARD attitude setpoint; the heading comes from ``q``. Body-rate-only setpoints
+        (attitude ignored), a missing thrust and a thrust vector (THRUST_BODY_SET: pymavlink's common
+        dialect has no ``thrust_body`` field to read it from) are refused (counted, and said once in a
+        STATUSTEXT): this stack's attitude layer takes angles and a collective thrust, not rates."""
+        mask = int(msg.type_mask)
+        if mask & (ATT_IGNORE_ATTITUDE | ATT_IGNORE_THRUST | ATT_THRUST_BODY_SET):
+            self.setpoints_rejected += 1
+            if not self.said_attitude_rates:
+                self.said_attitude_rates = True
+                self.statustext("SET_ATTITUDE_TARGET needs q and thrust (no rates)", SEVERITY_WARNING, links=[link])
+            return
+        q_wxyz = np.array(msg.q, dtype=float)
+        norm = float(np.linalg.norm(q_wxyz)) if np.all(np.isfinite(q_wxyz)) else math.nan
+        thrust = float(msg.thrust)
+        if not 0.9 <= norm <= 1.1:
+            self.setpoints_rejected += 1
+            return
+        roll, pitch, yaw = euler_rpy_from_quat_xyzw(quat_ned_frd_to_enu_flu(quat_wxyz_to_xyzw(q_wxyz / norm)))
+        try:
+            yaw_rad, yaw_rate, rp, thrust_frac = check_offboard_attitude(
+                self.vehicle, math.degrees(float(roll)), math.degrees(float(pitch)), thrust,
+                yaw_deg=math.degrees(float(yaw)))
+        except ValueError:
+            self.setpoints_rejected += 1
+            return
+        self.submit(bus.OffboardSetpoint(self.vehicle, yaw_rad=yaw_rad, yaw_rate_rad_s=yaw_rate, attitude_rp_rad=rp,
+                                         thrust_frac=thrust_frac, source="mavlink"))
 
     def on_manual_control(self, msg: Any) -> None:
         axes = (msg.x, msg.y, msg.z, msg.r)

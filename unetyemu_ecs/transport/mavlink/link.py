@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import errno
 import socket
+import sys
 from dataclasses import dataclass
 
 from pymavlink.dialects.v20 import common as mavlink2
@@ -22,6 +23,8 @@ RX_RATE_PER_S = 1000.0
 RX_BURST = 200
 RX_RESUME_TOKENS = 32            # a paused link reads again once this many datagrams are allowed
 SOCKET_BUFFER_BYTES = 1 << 20
+SO_RXQ_OVFL = getattr(socket, "SO_RXQ_OVFL", 40)     # Linux: each datagram carries the socket's drop count
+_DROP_COUNT_SPACE = socket.CMSG_SPACE(4)
 
 
 @dataclass
@@ -64,6 +67,10 @@ class Link:
         try:
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, SOCKET_BUFFER_BYTES)
             sock.bind(self.local)
+            try:                               # count what the kernel drops while the link is paused
+                sock.setsockopt(socket.SOL_SOCKET, SO_RXQ_OVFL, 1)
+            except OSError:                    # not Linux: rx_kernel_dropped stays 0
+                pass
         except OSError as exc:
             sock.close()
             host, port = self.local
@@ -92,11 +99,14 @@ class Link:
         self._refilled_s = now_s
         for _ in range(min(RX_DATAGRAMS_PER_WAKE, int(self._tokens))):
             try:
-                data, addr = self.sock.recvfrom(65535)
+                data, ancillary, _, addr = self.sock.recvmsg(65535, _DROP_COUNT_SPACE)
             except (BlockingIOError, InterruptedError):
                 break
             except OSError:            # ICMP port unreachable from an earlier send, etc.
                 continue
+            for level, kind, value in ancillary:
+                if level == socket.SOL_SOCKET and kind == SO_RXQ_OVFL and len(value) >= 4:
+                    self.rx.rx_kernel_dropped = int.from_bytes(value[:4], sys.byteorder)    # cumulative, per socket
             out.append((data, addr[:2]))
         self._tokens -= len(out)
         if self._tokens < 1.0:
