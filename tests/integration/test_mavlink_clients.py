@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import os
 import random
 import signal
@@ -24,6 +25,8 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
 from unetyemu_ecs.navigation.params import PX4_PARAMS
+from unetyemu_ecs.units import GRAVITY_M_S2
+from unetyemu_ecs.vehicles.presets import preset
 
 from ..conftest import REPO_ROOT, WORLDS, unetyemu_command
 from .mavlink_client import Client, free_ports
@@ -238,7 +241,7 @@ def _fuzz(port: int, count: int, stop: threading.Event, sent: list[int]) -> None
         sock.close()
 
 
-def test_mavsdk_native_binding_takes_off_lands_and_disarms_a_drone(pair, tmp_path):
+def test_mavsdk_native_binding_takes_off_flies_offboard_attitude_lands_and_disarms_a_drone(pair, tmp_path):
     # GIVEN MAVSDK-Python's native binding (4.x) in a private folder (it shares the name `mavsdk` with
     # the gRPC 3.x the test extra pins), and the two-drone world running
     site = tmp_path / "mavsdk4"
@@ -247,19 +250,32 @@ def test_mavsdk_native_binding_takes_off_lands_and_disarms_a_drone(pair, tmp_pat
     assert pip.returncode == 0, pip.stderr[-2000:]
     ports, start = pair
     sim = start(150.0)
-    # WHEN it connects to drone 0's API link, sets the takeoff altitude, arms, takes off and lands
+    # WHEN it connects to drone 0's API link, sets the takeoff altitude, arms, takes off, tilts 8 deg nose
+    # down for 2 s in offboard attitude at the thrust whose vertical part carries the weight, and lands
+    medium = preset("quadrotor", "medium")
+    hover = medium["mass_kg"] * GRAVITY_M_S2 / (4.0 * medium["motors"]["max_thrust_per_motor_n"])
     env = {**os.environ, "PYTHONPATH": str(site)}
-    proc = subprocess.run([sys.executable, str(NATIVE_FLIGHT), str(ports["api_remote"])], env=env,
+    proc = subprocess.run([sys.executable, str(NATIVE_FLIGHT), str(ports["api_remote"]), str(hover)], env=env,
                           capture_output=True, text=True, timeout=180, start_new_session=True)
     summary = sim.stop()
     # THEN every step was reached, and the simulator flew it: up to MIS_TAKEOFF_ALT = 4 m (set by
     # MAVSDK), down again, disarmed two seconds after touchdown
     assert proc.returncode == 0, proc.stdout + proc.stderr[-3000:]
     steps = {s["step"]: s for s in map(json.loads, (line for line in proc.stdout.splitlines() if line.startswith("{")))}
-    assert list(steps) == ["connected", "took_off", "landed_and_disarmed"]
+    assert list(steps) == ["connected", "took_off", "offboard_attitude", "landed_and_disarmed"]
     assert steps["connected"]["system_id"] == 1 and steps["took_off"]["in_air"]
+    # the tilt drove it forward along its heading (2 s or a little more at g tan 8 deg = 1.38 m/s^2, less
+    # drag), not sideways
+    att = steps["offboard_attitude"]
+    north, east, _ = att["vel_ned_m_s"]
+    yaw = math.radians(att["heading_deg"])
+    along, across = north * math.cos(yaw) + east * math.sin(yaw), -north * math.sin(yaw) + east * math.cos(yaw)
+    assert att["mode"] == "OFFBOARD" and along > 1.5 and abs(across) < 0.3, att
     rows = sim.log("drone_a")
-    assert 3.5 < max(float(r["z_m"]) for r in rows) < 4.6 and rows[-1]["mode"] == "disarmed"
+    modes = [r["mode"] for r in rows]
+    assert "attitude" in modes                               # the attitude path flew it, not the position one
+    before_offboard = rows[:modes.index("attitude")]
+    assert 3.5 < max(float(r["z_m"]) for r in before_offboard) < 4.6 and rows[-1]["mode"] == "disarmed"
     events = [e["text"] for e in summary["events"] if e["entity"] == "drone_a"]
     assert "parameter MIS_TAKEOFF_ALT set to 4" in events and "disarmed: landed 2 s ago (COM_DISARM_LAND)" in events
 
