@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -82,6 +81,6 @@ def test_delivery_scenario_real_time_factor(benchmark, ros2, subscriber):
         report = peer.stdout.read()
         peer.wait(timeout=10)
         counts = json.loads(report.strip().splitlines()[-1])
-        print(f"\nsubscriber received: " + ", ".join(f"{k} {v['count']}" for k, v in counts.items()))
+        print("\nsubscriber received: " + ", ".join(f"{k} {v['count']}" for k, v in counts.items()))
     print(f"\n{ros2}{' + subscriber' if subscriber else ''}: {SCENARIO_S:.0f} s simulated in "
           f"{benchmark.stats.stats.mean:.1f} s (real-time factor {rtf:.2f})")

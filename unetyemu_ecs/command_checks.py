@@ -335,14 +335,21 @@ def check_offboard_setpoint(vehicle: str, layout: SceneLayout, pos: Sequence[flo
         return float(vals[0]), float(vals[1]), float(vals[2])
 
     checked_pos = None if pos is None else check_position(what, layout, pos)
+    return (checked_pos, velocity("vel_enu", vel_enu), velocity("vel_flu", vel_flu),
+            *_heading_or_rate(what, yaw_deg, yaw_rate_rad_s))
+
+
+def _heading_or_rate(what: str, yaw_deg: float | None, yaw_rate_rad_s: float | None
+                     ) -> tuple[float | None, float | None]:
+    """A setpoint's heading (deg ENU, one turn either way) and yaw rate (+-MAX_YAW_RATE_RAD_S), each
+    optional, as ``(yaw_rad, yaw_rate_rad_s)``."""
     if yaw_deg is not None and not (is_real(yaw_deg) and math.isfinite(yaw_deg) and abs(yaw_deg) <= MAX_YAW_DEG):
         raise ValueError(f"{what}: yaw_deg must be a number in [-{MAX_YAW_DEG:g}, {MAX_YAW_DEG:g}], got {yaw_deg!r}")
     if yaw_rate_rad_s is not None and not (is_real(yaw_rate_rad_s) and math.isfinite(yaw_rate_rad_s)
                                            and abs(yaw_rate_rad_s) <= MAX_YAW_RATE_RAD_S):
         raise ValueError(f"{what}: yaw_rate_rad_s must be within +-{MAX_YAW_RATE_RAD_S:g} rad/s, "
                          f"got {yaw_rate_rad_s!r}")
-    return (checked_pos, velocity("vel_enu", vel_enu), velocity("vel_flu", vel_flu),
-            None if yaw_deg is None else math.radians(yaw_deg),
+    return (None if yaw_deg is None else math.radians(yaw_deg),
             None if yaw_rate_rad_s is None else float(yaw_rate_rad_s))
 
 
@@ -364,15 +371,8 @@ def check_offboard_attitude(vehicle: str, roll_deg: float, pitch_deg: float, thr
                          f"got {thrust!r}")
     if yaw_deg is not None and yaw_rate_rad_s is not None:
         raise ValueError(f"{what}: give a yaw or a yaw rate, not both")
-    if yaw_deg is not None and not (is_real(yaw_deg) and math.isfinite(yaw_deg) and abs(yaw_deg) <= MAX_YAW_DEG):
-        raise ValueError(f"{what}: yaw_deg must be a number in [-{MAX_YAW_DEG:g}, {MAX_YAW_DEG:g}], got {yaw_deg!r}")
-    if yaw_rate_rad_s is not None and not (is_real(yaw_rate_rad_s) and math.isfinite(yaw_rate_rad_s)
-                                           and abs(yaw_rate_rad_s) <= MAX_YAW_RATE_RAD_S):
-        raise ValueError(f"{what}: yaw_rate_rad_s must be within +-{MAX_YAW_RATE_RAD_S:g} rad/s, "
-                         f"got {yaw_rate_rad_s!r}")
-    return (None if yaw_deg is None else math.radians(yaw_deg),
-            None if yaw_rate_rad_s is None else float(yaw_rate_rad_s),
-            (math.radians(roll_deg), math.radians(pitch_deg)), float(thrust))
+    return (*_heading_or_rate(what, yaw_deg, yaw_rate_rad_s), (math.radians(roll_deg), math.radians(pitch_deg)),
+            float(thrust))
 
 
 MAX_ORBIT_RADIUS_M = 1000.0       # a 1 km circle is already far beyond a multicopter orbit

@@ -6,7 +6,6 @@ before it compares the signature)."""
 from __future__ import annotations
 
 import pytest
-from pymavlink.dialects.v20 import common as mavlink2
 
 from unetyemu_ecs import Simulation, load_world_text
 

@@ -141,7 +141,7 @@ def test_discrete_commands_are_all_applied_in_order_and_only_streams_are_coalesc
 def test_inbox_keeps_the_newest_of_each_stream_where_the_stream_began():
     # GIVEN two stick streams, targets and a rejection queued in one step
     inbox = Inbox()
-    a = inbox.submit(Teleop("d1", (0.1, 0.0, 0.0, 0.0)))
+    inbox.submit(Teleop("d1", (0.1, 0.0, 0.0, 0.0)))
     t1 = inbox.submit(SetTarget("d1", (1.0, 0.0, 1.0), None, None))
     b = inbox.submit(Teleop("d1", (0.2, 0.0, 0.0, 0.0)))
     other = inbox.submit(Teleop("d2", (0.3, 0.0, 0.0, 0.0)))

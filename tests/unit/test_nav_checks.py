@@ -7,7 +7,6 @@ import math
 import pytest
 
 from unetyemu_ecs import command_checks as cc
-from unetyemu_ecs.scene.primitives import SceneLayout
 from unetyemu_ecs.systems.flight_state import NavState
 
 

@@ -15,7 +15,6 @@ from __future__ import annotations
 import hashlib
 import hmac
 import os
-import struct
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field

@@ -31,12 +31,9 @@ from . import px4
 from .codec import SignatureChecker, addressed_to
 from .component import COMPONENT_ID, MavlinkEndpoint
 from .link import Link
+from .missions import MissionService
 from .telemetry import RowView, build
 
-try:                                       # engineer D's mission / fence / rally protocol
-    from .missions import MissionService
-except ImportError:                        # pragma: no cover - until it lands
-    MissionService = None                  # type: ignore[assignment,misc]
 
 PARAM_REAL32, PARAM_INT32 = 9, 6
 PENDING_TIMEOUT_S = 10.0                  # wall clock: a command whose result never comes is forgotten
@@ -152,11 +149,9 @@ class DroneEndpoint:
         self.unhandled_messages = 0
         self.setpoints_rejected = 0
         self.said_attitude_rates = False
-        self.missions = None
         self.mission_ids: set[int] = set()
-        if MissionService is not None:
-            self.missions = MissionService(vehicle, self.sysid, self.compid, origin, layout, self._submit_mission)
-        self.handles = frozenset(getattr(self.missions, "HANDLES", ()))
+        self.missions = MissionService(vehicle, self.sysid, self.compid, origin, layout, self._submit_mission)
+        self.handles = MissionService.HANDLES
 
     # -- life cycle (transport thread) ---------------------------------------------------------------
 
@@ -203,7 +198,7 @@ class DroneEndpoint:
 
     def handle(self, msg: Any, link: Link, addr: tuple[str, int], now_s: float) -> None:
         mid = msg.get_msgId()
-        if mid in self.handles and self.missions is not None:
+        if mid in self.handles:
             self.missions.handle(msg, link, now_s)
         elif mid in (75, 76):
             self.on_command(msg, link, addr, now_s)
@@ -283,8 +278,7 @@ class DroneEndpoint:
 
     def step_of_seq(self, seq: int) -> int | None:
         """Mission step of MAVLink item ``seq`` (MISSION_START and DO_SET_MISSION_CURRENT number items)."""
-        lookup = getattr(self.missions, "step_of_seq", None)
-        return lookup(seq) if lookup is not None else seq
+        return self.missions.step_of_seq(seq)
 
     def home_alt_amsl(self) -> float:
         view = self.current_view()
@@ -675,8 +669,7 @@ class DroneEndpoint:
     def on_result(self, result: CommandResult) -> None:
         if result.command_id in self.mission_ids:
             self.mission_ids.discard(result.command_id)
-            if self.missions is not None:
-                self.missions.on_result(result)
+            self.missions.on_result(result)
             return
         pend = self.pending.pop(result.command_id, None)
         if pend is None:
@@ -789,12 +782,10 @@ class DroneEndpoint:
                         self.imu = None
                 if built[mid] is not None:
                     link.send(built[mid])
-        if self.missions is not None:
-            self.missions.on_snapshot(snap, row, self.links)
+        self.missions.on_snapshot(snap, row, self.links)
 
     def tick(self, now_s: float) -> None:
-        if self.missions is not None:
-            self.missions.tick(now_s)
+        self.missions.tick(now_s)
 
     def counters(self) -> dict[str, Any]:
         out: dict[str, Any] = {link.name: link.counters() for link in self.links}
@@ -804,8 +795,7 @@ class DroneEndpoint:
         out["system_id"] = self.sysid
         out["ports"] = {"api": [self.cfg.api_local_port, self.cfg.api_remote_port],
                         "gcs": [self.cfg.gcs_local_port, self.cfg.gcs_remote]}
-        if self.missions is not None:
-            out["missions"] = self.missions.counters()
+        out["missions"] = self.missions.counters()
         return out
 
 
