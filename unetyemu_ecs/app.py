@@ -141,6 +141,7 @@ class Simulation(NavigationApi):
         self.out_dir = Path(out_dir) if out_dir is not None else None
         self._stop_requested = False
         self._closed = False
+        self._profile: Any = None           # StepProfile of profile_steps()
         self._built = False             # construction finished (close() then writes the summary)
         self.wall_time_s = 0.0          # wall-clock time spent in step() and run() so far [s]
         self.cpu_time_s = 0.0           # CPU time of this process meanwhile [s]
@@ -615,6 +616,24 @@ class Simulation(NavigationApi):
     def log_paths(self) -> dict[str, Path]:
         """CSV log per vehicle name (empty without ``out_dir``)."""
         return dict(self._log.paths) if self._log is not None else {}
+
+    # -- profiling -------------------------------------------------------------------------------
+    def profile_steps(self, enabled: bool = True) -> None:
+        """Time every system of every following step (a fresh :class:`~unetyemu_ecs.world.StepProfile`,
+        read with :attr:`step_profile`); ``enabled=False`` stops timing (the profile stays readable).
+        Costs about a microsecond per system per step."""
+        self._require_open()
+        if enabled:
+            from .world import StepProfile
+
+            self._profile = self.ecs.profile = StepProfile()
+        else:
+            self.ecs.profile = None
+
+    @property
+    def step_profile(self) -> Any:
+        """The :class:`~unetyemu_ecs.world.StepProfile` of :meth:`profile_steps` (None before it)."""
+        return self._profile
 
     # -- life cycle --------------------------------------------------------------------------
     def summary(self) -> dict[str, Any]:

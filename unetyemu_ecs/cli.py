@@ -118,6 +118,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="output directory, new or empty (default: runs/<world>-<date>-<time>)")
     run.add_argument("--overwrite", action="store_true", help="allow --out to name a directory that holds files")
     run.add_argument("--quiet", action="store_true", help="no progress display")
+    run.add_argument("--profile", action="store_true",
+                     help="time every system of every step; print the per-phase and per-system table at the end "
+                          "(also in summary.json under step_profile)")
     run.add_argument("--ros2", choices=["off", "auto", "rclpy", "dds"], default="off",
                      help="be a ROS 2 node: publish sensors, TF, /clock and mission status, take commands "
                           "(dds: built in, no ROS needed; rclpy: the sourced ROS 2; auto: rclpy if it imports, "
@@ -294,6 +297,8 @@ def _run(args: argparse.Namespace, stop: _StopOnSignal) -> int:
         print(f"error: cannot write outputs to {out}: {exc}", file=sys.stderr)
         return EXIT_FAILURE
     stop.sim = sim
+    if args.profile:
+        sim.profile_steps()
     if args.rate is None:       # a window or a transport (ROS 2, MAVLink endpoints) means someone is watching
         rate = 1.0 if (args.gui or sim.transports) else None
     else:
@@ -315,6 +320,8 @@ def _run(args: argparse.Namespace, stop: _StopOnSignal) -> int:
     finally:
         sim.close()                          # writes summary.json and closes the CSV logs
     print(format_summary(summary))
+    if sim.step_profile is not None:
+        print(sim.step_profile.table())
     print(f"outputs: {out} ({len(summary['logs'])} vehicle logs, summary.json)")
     if stop.exit_code is not None:
         return stop.exit_code

@@ -34,7 +34,7 @@ def build_summary(sim: Simulation, stats: RunStats) -> dict[str, Any]:
         if ent.kind == "car":
             item["drive"] = sim.drive_status(ent.name)
         entities.append(item)
-    return {
+    out = {
         "world": d.name,
         "world_file": d.file,
         "seed": sim.seed,
@@ -52,6 +52,12 @@ def build_summary(sim: Simulation, stats: RunStats) -> dict[str, Any]:
         "events": [{"time_s": t, "entity": name, "text": text} for t, name, text in sim.events],
         "logs": {name: str(p) for name, p in sim.log_paths.items()},
     }
+    profile = sim.step_profile
+    if profile is not None:
+        out["step_profile"] = {"steps": profile.steps,
+                               "systems": [{"phase": phase, "system": name, "us_per_step": round(us, 2),
+                                            "share": round(share, 4)} for phase, name, us, share in profile.rows()]}
+    return out
 
 
 def _finite_or_none(x: float) -> float | None:

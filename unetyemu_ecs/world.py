@@ -8,6 +8,7 @@ simulations in one process never see each other's entities or processors.
 
 from __future__ import annotations
 
+import time
 import uuid
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -111,6 +112,40 @@ class StepContext:
     services: SimServices
 
 
+@dataclass
+class StepProfile:
+    """Wall time spent in each system (by class) over the profiled steps."""
+
+    seconds: dict[type, float] = field(default_factory=dict)
+    calls: dict[type, int] = field(default_factory=dict)
+    steps: int = 0
+
+    def rows(self) -> list[tuple[str, str, float, float]]:
+        """``(phase, system, microseconds per step, share of the profiled time)`` for every system that ran,
+        in running order of phases, the costliest first within a phase."""
+        total = sum(self.seconds.values()) or 1.0
+        steps = max(self.steps, 1)
+        out = [(getattr(cls, "phase", Phase.OUTPUTS), cls.__name__, 1e6 * sec / steps, sec / total)
+               for cls, sec in self.seconds.items()]
+        out.sort(key=lambda r: (int(r[0]), -r[2]))
+        return [(phase.name, name, us, share) for phase, name, us, share in out]
+
+    def table(self) -> str:
+        """The profile as a text table: per system, and a subtotal per phase."""
+        rows = self.rows()
+        total_us = sum(r[2] for r in rows)
+        lines = [f"step profile over {self.steps} steps: {total_us:.0f} us per step in the systems",
+                 f"{'phase':<15} {'system':<44} {'us/step':>9} {'share':>7}"]
+        phase = None
+        for name, system, us, share in rows:
+            if name != phase:
+                phase = name
+                sub = sum(r[2] for r in rows if r[0] == name)
+                lines.append(f"{name:<15} {'(phase total)':<44} {sub:9.1f} {sub / max(total_us, 1e-12):7.1%}")
+            lines.append(f"{'':<15} {system[:44]:<44} {us:9.1f} {share:7.1%}")
+        return "\n".join(lines)
+
+
 class EcsWorld:
     """One named esper world plus its ordered systems."""
 
@@ -118,6 +153,7 @@ class EcsWorld:
         self.name = f"unetyemu-{label}-{uuid.uuid4().hex[:12]}"
         self._closed = False
         self._systems: list[tuple[int, Any]] = []
+        self.profile: StepProfile | None = None     # per-system timing (``unetyemu run --profile``)
         prev = esper.current_world
         esper.switch_world(self.name)  # creates it
         esper.switch_world(prev)
@@ -159,8 +195,20 @@ class EcsWorld:
         return [s for _, s in self._systems]
 
     def process(self, ctx: StepContext) -> None:
-        """Run every system once, in phase order (the world must be active)."""
-        esper.process(ctx)
+        """Run every system once, in phase order (the world must be active); timed per system while a
+        :class:`StepProfile` is attached (``profile``)."""
+        if self.profile is None:
+            esper.process(ctx)
+            return
+        esper.clear_dead_entities()
+        clock, spent, calls = time.perf_counter, self.profile.seconds, self.profile.calls
+        for _, system in self._systems:
+            t0 = clock()
+            system.process(ctx)
+            key = type(system)
+            spent[key] = spent.get(key, 0.0) + (clock() - t0)
+            calls[key] = calls.get(key, 0) + 1
+        self.profile.steps += 1
 
     def close(self) -> None:
         """Delete the esper world; further use raises."""

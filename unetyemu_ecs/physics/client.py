@@ -78,14 +78,6 @@ class PhysicsClient:
             if t[0] != 0.0 or t[1] != 0.0 or t[2] != 0.0:
                 torque(bid, -1, t.tolist(), p.WORLD_FRAME, physicsClientId=cid)
 
-    def apply_point_forces(self, body_ids: np.ndarray, force_enu_n: np.ndarray, point_enu_m: np.ndarray) -> None:
-        """Apply world-frame forces (K, 3) at world points (K, 3) on bodies (K,) for the next step."""
-        cid = self.id
-        force = p.applyExternalForce
-        frame = p.WORLD_FRAME
-        for bid, f, x in zip(body_ids.tolist(), force_enu_n.tolist(), point_enu_m.tolist()):
-            force(bid, -1, f, x, frame, physicsClientId=cid)
-
     def attach_fixed(self, parent_body: int, child_body: int, max_force_n: float = 1e5) -> int:
         """Join ``child_body`` rigidly to ``parent_body`` at their current relative pose; return the constraint id."""
         cid = self.id
