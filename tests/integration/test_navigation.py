@@ -566,3 +566,39 @@ def test_geofence_action_warning_only_warns_and_return_flies_home():
     run_until(sim, lambda: sim.nav_state("d1") == "RTL", 15.0)
     run_until(sim, lambda: sim.landed_state("d1") == "ON_GROUND", 60.0)
     assert np.hypot(*sim.position_enu_m("d1")[:2]) < 1.0
+
+
+def test_the_navigators_arming_verdicts_for_the_whole_fleet_equal_the_arm_commands_check_drone_by_drone():
+    import esper
+
+    from unetyemu_ecs.components.body import FleetSlot
+    from unetyemu_ecs.navigation.geofence import Geofence
+    from unetyemu_ecs.navigation.params import FlightParams
+    from unetyemu_ecs.navigation.state import NavRuntime
+    from unetyemu_ecs.systems.flight_state import ArmBlock
+    from unetyemu_ecs.systems.navigator import arm_block, arm_blocks, fence_active, fence_breach
+
+    # GIVEN six drones: fine, low battery, overweight, motors off, outside their fence, in the air
+    drones = "".join(drone(f"d{i}", pose=f"{{position_m: [{4.0 * i}, 0.0, {8.0 if i == 5 else 0.3}]}}")
+                     for i in range(6))
+    sim = Simulation(load_world_text(flat_world(drones)))
+    sim.set_geofence("d4", Geofence(exclusion_circles=((16.0, 0.0, 2.0),)))
+    sim.run(duration=1.0)                      # settled on the ground, d5 still falling
+    f, row = sim.fleet, sim.row
+    f.soc_frac[row("d1")], f.low_battery[row("d1")] = 0.05, True
+    f.motors_enabled[row("d2")], f.payload_kg[row("d2")] = False, 50.0
+    f.motors_enabled[row("d3")] = False
+    # WHEN the navigator's fleet-wide verdict and the per-drone check are both asked
+    with sim.ecs.active():
+        items = esper.get_components(FleetSlot, NavRuntime, FlightParams)
+        rows = np.array([slot.row for _, (slot, _, _) in items])
+        why = [fence_breach(f, slot.row, nav, params) if fence_active(nav, params) else ""
+               for _, (slot, nav, params) in items]
+        together = arm_blocks(f, rows, why).tolist()
+        one_by_one = [int(arm_block(f, ent, slot.row, nav, params)) for ent, (slot, nav, params) in items]
+    # THEN they agree, and each drone is blocked for its own reason
+    assert together == one_by_one
+    verdict = dict(zip(rows.tolist(), together))
+    expected = [ArmBlock.NONE, ArmBlock.LOW_BATTERY, ArmBlock.OVERWEIGHT, ArmBlock.MOTORS_DISABLED,
+                ArmBlock.OUTSIDE_FENCE, ArmBlock.IN_AIR]
+    assert [ArmBlock(verdict[row(f"d{i}")]) for i in range(6)] == expected

@@ -100,6 +100,15 @@ class PhysicsClient:
         """Ids of the bodies ``body`` was in contact with at the last step."""
         return {c[2] for c in p.getContactPoints(bodyA=body, physicsClientId=self.id)}
 
+    def contact_map(self) -> dict[int, set[int]]:
+        """Body id -> ids of the bodies it touched at the last step, for every body in contact (one call)."""
+        out: dict[int, set[int]] = {}
+        for c in p.getContactPoints(physicsClientId=self.id):
+            a, b = c[1], c[2]
+            out.setdefault(a, set()).add(b)
+            out.setdefault(b, set()).add(a)
+        return out
+
     def contacts(self) -> list[tuple[int, int, tuple[float, float, float]]]:
         """Every contact point after the last step as ``(body_a, body_b, point_on_b_enu_m)`` (one call)."""
         return [(c[1], c[2], c[6]) for c in p.getContactPoints(physicsClientId=self.id)]

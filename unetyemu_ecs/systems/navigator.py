@@ -37,6 +37,12 @@ from ..world import StepContext
 from .commands import Refusal
 from .flight_state import ArmBlock, FlightMode, LandedState, MissionState, NavState, Route, set_route
 
+_NOTHING: frozenset[int] = frozenset()
+# plain ints of the states the per-drone loops compare with and write (a numpy scalar met with an IntEnum
+# looks the enum's type up for numpy's protocols, which costs microseconds each)
+_DISARMED, _ON_GROUND, _UNDEFINED = int(FlightMode.DISARMED), int(LandedState.ON_GROUND), int(LandedState.UNDEFINED)
+_OFFBOARD, _POSCTL, _MANUAL = int(NavState.OFFBOARD), int(NavState.POSCTL), int(NavState.MANUAL)
+_RUNNING = int(MissionState.RUNNING)
 LAND_TRIGGER_S = 0.3        # the land-detector conditions must hold this long (PX4 LandDetector trigger time)
 LAND_BELOW_M = 0.3          # a landing aims this far below the resting height, so touchdown happens
 TAKEOFF_DONE_M = 0.3        # TAKEOFF is done within this height of its altitude
@@ -583,6 +589,34 @@ def arm_block(f: Any, ent: int, row: int, nav: NavRuntime, params: FlightParams)
     return ArmBlock.NONE if why is None else ArmBlock[why.reason.upper()]
 
 
+def fence_active(nav: NavRuntime, params: FlightParams) -> bool:
+    """The drone's geofence can be breached: enabled, with a zone or a GF_MAX_* distance limit."""
+    return nav.fence_enabled and ((nav.fence is not None and not nav.fence.empty)
+                                  or params["GF_MAX_HOR_DIST"] > 0.0 or params["GF_MAX_VER_DIST"] > 0.0)
+
+
+def arm_blocks(f: Any, rows: np.ndarray, fence_why: list[str]) -> np.ndarray:
+    """:func:`arm_block` of the drones in ``rows`` at once (int8 ArmBlock codes), with the checks in the same
+    order; ``fence_why`` holds :func:`fence_breach` of each row ("" inside, or no fence to breach)."""
+    n = f.soc_frac.shape[0]
+    low_frac, max_payload = np.full(n, -np.inf), np.full(n, np.inf)     # no battery: never low; no bay: no limit
+    for _, (slot, energy) in esper.get_components(FleetSlot, EnergyModel):
+        low_frac[slot.row] = energy.low_battery_land_frac
+    for _, (slot, bay) in esper.get_components(FleetSlot, PayloadBay):
+        max_payload[slot.row] = bay.max_payload_kg
+    has_battery = np.isfinite(low_frac[rows])
+    low = has_battery & (f.low_battery[rows] | (f.soc_frac[rows] < low_frac[rows]))
+    motors_off = ~f.motors_enabled[rows]
+    overweight = motors_off & (f.payload_kg[rows] > max_payload[rows])
+    outside = np.array([bool(w) for w in fence_why], dtype=bool)
+    landed = f.landed_state[rows]
+    in_air = (landed != _ON_GROUND) & (landed != _UNDEFINED)
+    codes = np.select([low, overweight, motors_off, outside, in_air],
+                      [int(ArmBlock.LOW_BATTERY), int(ArmBlock.OVERWEIGHT), int(ArmBlock.MOTORS_DISABLED),
+                       int(ArmBlock.OUTSIDE_FENCE), int(ArmBlock.IN_AIR)], default=int(ArmBlock.NONE))
+    return codes.astype(np.int8)
+
+
 # -- land detector ---------------------------------------------------------------------------
 class LandDetectorSystem(esper.Processor):
     """Landed state of every drone from contact and motion (PX4's multicopter land detector).
@@ -597,35 +631,44 @@ class LandDetectorSystem(esper.Processor):
     def process(self, ctx: StepContext) -> None:
         f = ctx.fleet
         t = ctx.sim_time_s + ctx.dt_s           # the state read back is the state at the end of this step
-        for ent, (slot, body, nav, params) in esper.get_components(FleetSlot, RigidBody, NavRuntime, FlightParams):
+        drones = esper.get_components(FleetSlot, RigidBody, NavRuntime, FlightParams)
+        if not drones:
+            return
+        contact = ctx.physics.contact_map()     # one query for the whole world
+        rows = [slot.row for _, (slot, _, _, _) in drones]
+        vel = f.vel_enu_m_s[rows]
+        speed_z = np.abs(vel[:, 2]).tolist()
+        speed_xy = np.hypot(vel[:, 0], vel[:, 1]).tolist()
+        rate = np.linalg.norm(f.rate_flu_rad_s[rows], axis=1).tolist()
+        packages = f.payload_entity[rows].tolist()
+        landed = f.landed_state[rows].tolist()
+        modes, nav_states = f.flight_mode[rows].tolist(), f.nav_state[rows].tolist()
+        for k, (ent, (slot, body, nav, params)) in enumerate(drones):
             row = slot.row
-            touching = ctx.physics.touching(body.body_id)
-            package = int(f.payload_entity[row])
-            if package >= 0:
-                carried = esper.component_for_entity(package, RigidBody).body_id
-                touching = (touching | ctx.physics.touching(carried)) - {body.body_id, carried}
-            vel = f.vel_enu_m_s[row]
-            still = (bool(touching) and abs(vel[2]) < params["LNDMC_Z_VEL_MAX"]
-                     and math.hypot(vel[0], vel[1]) < params["LNDMC_XY_VEL_MAX"]
-                     and float(np.linalg.norm(f.rate_flu_rad_s[row])) < math.radians(params["LNDMC_ROT_MAX"]))
-            prev = int(f.landed_state[row])
+            touching = contact.get(body.body_id, _NOTHING)
+            if packages[k] >= 0:
+                carried = esper.component_for_entity(packages[k], RigidBody).body_id
+                touching = (touching | contact.get(carried, _NOTHING)) - {body.body_id, carried}
+            still = (bool(touching) and speed_z[k] < params["LNDMC_Z_VEL_MAX"]
+                     and speed_xy[k] < params["LNDMC_XY_VEL_MAX"]
+                     and rate[k] < math.radians(params["LNDMC_ROT_MAX"]))
+            prev = landed[k]
             if still:
                 if math.isnan(nav.contact_since_s):
                     nav.contact_since_s = t
-                on_ground = prev in (LandedState.UNDEFINED, LandedState.ON_GROUND) or \
-                    t - nav.contact_since_s >= LAND_TRIGGER_S - 1e-9
+                on_ground = prev in (_UNDEFINED, _ON_GROUND) or t - nav.contact_since_s >= LAND_TRIGGER_S - 1e-9
             else:
                 nav.contact_since_s = math.nan
                 on_ground = False
             if on_ground:
-                if prev != LandedState.ON_GROUND:
+                if prev != _ON_GROUND:
                     nav.ground_since_s = t
-                f.landed_state[row] = LandedState.ON_GROUND
+                    f.landed_state[row] = _ON_GROUND
                 continue
             nav.ground_since_s = math.nan
-            if f.flight_mode[row] != FlightMode.DISARMED:
+            if modes[k] != _DISARMED:
                 nav.took_off = True
-            f.landed_state[row] = self._airborne_state(ent, int(f.nav_state[row]), nav)
+            f.landed_state[row] = int(self._airborne_state(ent, nav_states[k], nav))
 
     @staticmethod
     def _airborne_state(ent: int, nav_state: int, nav: NavRuntime) -> int:
@@ -657,33 +700,46 @@ class NavigatorSystem(esper.Processor):
     def process(self, ctx: StepContext) -> None:
         f = ctx.fleet
         t = ctx.sim_time_s
-        for ent, (slot, nav, params) in esper.get_components(FleetSlot, NavRuntime, FlightParams):
+        drones = esper.get_components(FleetSlot, NavRuntime, FlightParams)
+        if not drones:
+            return
+        rows = np.array([slot.row for _, (slot, _, _) in drones])
+        unset = rows[~f.home_set[rows]]
+        if unset.size:
+            f.home_enu_m[unset] = f.pos_enu_m[unset]
+            f.home_set[unset] = True
+        fenced = [fence_active(nav, params) for _, (_, nav, params) in drones]
+        why = [fence_breach(f, slot.row, nav, params) if on else ""
+               for on, (_, (slot, nav, params)) in zip(fenced, drones)]
+        f.arm_block[rows] = arm_blocks(f, rows, why)
+        modes, nav_states = f.flight_mode[rows].tolist(), f.nav_state[rows].tolist()
+        for k, (ent, (slot, nav, params)) in enumerate(drones):
             row = slot.row
-            if not f.home_set[row]:
-                f.home_enu_m[row] = f.pos_enu_m[row]
-                f.home_set[row] = True
-            f.arm_block[row] = arm_block(f, ent, row, nav, params)
-            armed = f.flight_mode[row] != FlightMode.DISARMED
-            if not armed:
+            if modes[k] == _DISARMED:
                 if nav.mode:
                     _set_mode(nav, "", "", t, None)
                 nav.took_off, nav.armed_s = False, math.nan
                 continue
             if nav.mode:
                 self._advance(ctx, ent, row, nav, params)
-            elif f.nav_state[row] == NavState.OFFBOARD and nav.offboard is not None:
+            elif nav_states[k] == _OFFBOARD and nav.offboard is not None:
                 if offboard_fresh(nav, params, t):
                     fly_offboard(ctx, ent, row, nav, params, new=False)
                 else:
                     offboard_lost(ctx, ent, row, nav, params)
-            elif f.nav_state[row] in (NavState.POSCTL, NavState.MANUAL) and nav.manual is not None:
+            elif nav_states[k] in (_POSCTL, _MANUAL) and nav.manual is not None:
                 if manual_fresh(nav, params, t):
                     fly_manual(ctx, row, nav, params)
                 else:
                     manual_lost(ctx, ent, row, nav, params)
-            if f.landed_state[row] != LandedState.ON_GROUND and f.flight_mode[row] != FlightMode.DISARMED:
-                enforce_fence(ctx, ent, row, nav, params)
-            self._auto_disarm(ctx, ent, row, nav, params)
+            on_ground = int(f.landed_state[row]) == _ON_GROUND
+            if not on_ground and int(f.flight_mode[row]) != _DISARMED:
+                if fenced[k]:
+                    enforce_fence(ctx, ent, row, nav, params)
+                else:
+                    nav.fence_ok = True            # nothing to breach (what enforce_fence would find)
+            if on_ground:
+                self._auto_disarm(ctx, ent, row, nav, params)
 
     def _advance(self, ctx: StepContext, ent: int, row: int, nav: NavRuntime, params: FlightParams) -> None:
         f = ctx.fleet
@@ -725,7 +781,7 @@ class NavigatorSystem(esper.Processor):
 
     def _auto_disarm(self, ctx: StepContext, ent: int, row: int, nav: NavRuntime, params: FlightParams) -> None:
         f = ctx.fleet
-        if f.landed_state[row] != LandedState.ON_GROUND or f.mission_state[row] == MissionState.RUNNING:
+        if int(f.landed_state[row]) != _ON_GROUND or int(f.mission_state[row]) == _RUNNING:
             return
         t = ctx.sim_time_s
         if nav.took_off:
@@ -738,8 +794,8 @@ class NavigatorSystem(esper.Processor):
                 disarm(ctx, ent, row, f"armed {delay:g} s without taking off (COM_DISARM_PRFLT)")
 
 
-__all__ = ["LandDetectorSystem", "NavigatorSystem", "arm_block", "arming_refusal", "brake_and_hold", "disarm",
-           "enforce_fence", "ensure_all_drones", "ensure_nav", "fence_breach", "fly_follow", "fly_manual",
+__all__ = ["LandDetectorSystem", "NavigatorSystem", "arm_block", "arm_blocks", "arming_refusal", "brake_and_hold", "disarm",
+           "enforce_fence", "ensure_all_drones", "ensure_nav", "fence_active", "fence_breach", "fly_follow", "fly_manual",
            "fly_offboard", "fly_orbit", "follow_fresh", "hold", "land_route", "manual_fresh", "offboard_fresh",
            "offboard_lost", "rtl_destination", "start_follow", "start_land", "start_orbit", "start_rtl",
            "start_takeoff"]
