@@ -49,8 +49,15 @@ def _project(pos: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray,
     return t, np.sqrt(length2), np.linalg.norm(pos - closest, axis=1)
 
 
+def route_lengths(route_enu_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Segment lengths (M, W-1) and cumulative length at each point (M, W) [m] of padded routes (M, W, 3)."""
+    seg_lengths = np.linalg.norm(np.diff(route_enu_m, axis=1), axis=2)
+    return seg_lengths, np.concatenate([np.zeros((route_enu_m.shape[0], 1)), np.cumsum(seg_lengths, axis=1)], axis=1)
+
+
 def pure_pursuit(pos_enu_m: np.ndarray, route_enu_m: np.ndarray, n_points: np.ndarray, segment: np.ndarray,
-                 speeds_m_s: np.ndarray, lead_m: np.ndarray, final_zone_m: np.ndarray) -> PursuitResult:
+                 speeds_m_s: np.ndarray, lead_m: np.ndarray, final_zone_m: np.ndarray,
+                 lengths: tuple[np.ndarray, np.ndarray] | None = None) -> PursuitResult:
     """Advance each drone along its route and place its virtual target.
 
     Parameters
@@ -62,6 +69,8 @@ def pure_pursuit(pos_enu_m: np.ndarray, route_enu_m: np.ndarray, n_points: np.nd
     speeds_m_s : (M, W, 3) [m/s], (cruise, climb, descent) speed at each route point
     lead_m : (M,) [m], lead distance of the virtual target
     final_zone_m : (M,) [m], length of the final approach in which the lead shrinks to zero
+    lengths : :func:`route_lengths` of ``route_enu_m`` when the caller keeps them (they change only with
+        the routes); computed here when None
     """
     m_idx = np.arange(pos_enu_m.shape[0])
     last_seg = n_points - 2
@@ -86,8 +95,7 @@ def pure_pursuit(pos_enu_m: np.ndarray, route_enu_m: np.ndarray, n_points: np.nd
     b = route_enu_m[m_idx, seg + 1]
     t, seg_len, cross = _project(pos_enu_m, a, b)
 
-    seg_lengths = np.linalg.norm(np.diff(route_enu_m, axis=1), axis=2)               # (M, W-1)
-    cum = np.concatenate([np.zeros((len(m_idx), 1)), np.cumsum(seg_lengths, axis=1)], axis=1)  # (M, W)
+    seg_lengths, cum = lengths if lengths is not None else route_lengths(route_enu_m)   # (M, W-1), (M, W)
     total = cum[m_idx, n_points - 1]
     s_proj = cum[m_idx, seg] + t * seg_len
     remaining = np.maximum(total - s_proj, 0.0)

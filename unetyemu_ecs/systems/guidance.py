@@ -13,12 +13,16 @@ import numpy as np
 
 from ..components.flight import GuidanceLimits
 from ..control.position import body_velocity_to_enu_sp
-from ..control.pursuit import pure_pursuit
+from ..control.pursuit import pure_pursuit, route_lengths
 from ..frames import yaw_rad_from_quat_xyzw
 from ..phases import Phase
 from ..world import StepContext
 from .fleet_system import FleetSystem
 from .flight_state import FlightMode
+
+# plain ints of the modes compared with numpy arrays every step (numpy looks an IntEnum operand's type up for
+# its array protocols, several failed lookups through the enum's metaclass: microseconds per comparison)
+_AUTO, _VELOCITY = int(FlightMode.AUTO), int(FlightMode.VELOCITY)
 
 
 class RouteFollowingSystem(FleetSystem):
@@ -47,6 +51,7 @@ class RouteFollowingSystem(FleetSystem):
         self._n_points = np.full(m, 2, dtype=np.intp)
         self._route = np.zeros((m, 2, 3))
         self._speeds = np.ones((m, 2, 3))
+        self._seg_lengths, self._cum_lengths = route_lengths(self._route)     # kept with the routes
 
     def _load_routes(self, f, changed: np.ndarray) -> None:
         """Copy new routes of the ``changed`` local indices into the padded arrays."""
@@ -68,6 +73,7 @@ class RouteFollowingSystem(FleetSystem):
             self._speeds[k, w:] = route.speeds_m_s[-1]
             self._n_points[k] = w
         self._stamps[changed] = f.route_stamp[rows[changed]]
+        self._seg_lengths, self._cum_lengths = route_lengths(self._route)
 
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
@@ -76,10 +82,10 @@ class RouteFollowingSystem(FleetSystem):
         if changed.size:
             self._load_routes(f, changed)
         mode = f.flight_mode[rows]
-        auto = (mode == FlightMode.AUTO) & f.has_route[rows]
+        auto = (mode == _AUTO) & f.has_route[rows]
         if auto.any():
             self._follow_routes(ctx, np.flatnonzero(auto))
-        velocity = mode == FlightMode.VELOCITY
+        velocity = mode == _VELOCITY
         if velocity.any():
             self._velocity_setpoints(ctx, np.flatnonzero(velocity))
 
@@ -88,7 +94,7 @@ class RouteFollowingSystem(FleetSystem):
         f = ctx.fleet
         r = self.rows[k]
         res = pure_pursuit(f.pos_enu_m[r], self._route[k], self._n_points[k], f.route_segment[r], self._speeds[k],
-                           self._lead[k], self._zone[k])
+                           self._lead[k], self._zone[k], (self._seg_lengths[k], self._cum_lengths[k]))
         f.route_segment[r] = res.segment
         f.pos_sp_enu_m[r] = res.target_enu_m
         f.dist_to_final_m[r] = res.dist_to_final_m

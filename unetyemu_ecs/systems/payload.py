@@ -22,6 +22,10 @@ from ..world import StepContext
 from .fleet_system import FleetSystem
 from .flight_state import PayloadRequest, PayloadResult
 
+# plain ints of the requests compared with numpy arrays every step (numpy looks an IntEnum operand's type up for
+# its array protocols, several failed lookups through the enum's metaclass: microseconds per comparison)
+_NO_REQUEST = int(PayloadRequest.NONE)
+
 
 @dataclass(frozen=True)
 class Carried:
@@ -53,7 +57,7 @@ class PayloadSystem(FleetSystem):
         f = ctx.fleet
         r = self.rows
         bays = self.components[0]
-        pending = np.flatnonzero(f.payload_request[r] != PayloadRequest.NONE)
+        pending = np.flatnonzero(f.payload_request[r] != _NO_REQUEST)
         for k in pending.tolist():
             row = int(r[k])
             request = int(f.payload_request[row])
