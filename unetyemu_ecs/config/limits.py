@@ -65,8 +65,9 @@ MAX_DURATION_S = 7 * 24 * 3600.0
 MAX_WAIT_S = 24 * 3600.0
 
 # --- counts ----------------------------------------------------------------------------------------
-# Every vehicle is a PyBullet body with its own control stack and sensors; the benchmarks fly 100.
-MAX_VEHICLES = 256
+# Every vehicle is a PyBullet body with its own control stack and sensors; the stress benchmark flies 1000
+# (benchmarks/stress.py), which 2000 leaves room above.
+MAX_VEHICLES = 2000
 MAX_PACKAGES = 1024
 # Static scene objects (generated + explicit): a 16 x 16 city is ~8 500 objects and takes seconds
 # to build; 20 000 keeps building the physics and the ray-cast mesh within a minute and ~1 GB.
