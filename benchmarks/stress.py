@@ -34,6 +34,9 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_worlds import city_with_lidar_drones  # noqa: E402
+
 PHASES = ("COMMANDS", "MISSION", "GUIDANCE", "STABILIZE", "ACTUATE", "PHYSICS", "STATE", "PAYLOAD_ENERGY",
           "SENSORS", "OUTPUTS")
 CASES = ([f"flight-{n}" for n in (1, 10, 100, 250, 1000)]
@@ -49,15 +52,6 @@ def flight_world(n: int) -> str:
     for i in range(n):
         x, y = -side * 2.0 + 4.0 * (i % side), -side * 2.0 + 4.0 * (i // side)
         lines.append(f"  - {{name: d{i}, type: quadrotor, preset: medium, pose: {{position_m: [{x}, {y}, 0.3]}}}}")
-    return "\n".join(lines) + "\n"
-
-
-def lidar_world(n: int) -> str:
-    lines = ["world: {name: stress_lidar, physics_hz: 240, seed: 42}", "scene: {generator: urban}", "vehicles:"]
-    for i in range(n):
-        x, y = -72.0 + 72.0 * (i % 3), -130.0 + 260.0 * (i // 3) / max((n - 1) // 3, 1)
-        lines.append(f"  - {{name: d{i}, type: quadrotor, preset: medium, pose: {{position_m: [{x:.1f}, {y:.1f}, 15.0]}},"
-                     f" components: {{lidar: {{vertical_center_deg: -15.0, rate_hz: 10}}}}}}")
     return "\n".join(lines) + "\n"
 
 
@@ -85,7 +79,7 @@ def run_case(case: str, seconds: float) -> dict:
     elif kind == "lidar":
         n = int(rest[0])
         ros2 = "dds" if rest[1:] == ["ros2"] else "off"
-        world = load_world_text(lidar_world(n))
+        world = load_world_text(city_with_lidar_drones(n))
     elif kind == "camera":
         n, (w, h) = int(rest[0]), map(int, rest[1].split("x"))
         world = load_world_text(camera_world(n, w, h))

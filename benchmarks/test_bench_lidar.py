@@ -15,18 +15,10 @@ import pytest
 from unetyemu_ecs import Simulation, load_world_text
 from unetyemu_ecs.sensors.lidar import LidarSystem, ray_directions_sensor
 
+from bench_worlds import city_with_lidar_drones  # noqa: E402  (benchmarks/ is on sys.path)
+
 RAYS_PER_SCAN = 360 * 16
 RESULTS: dict[str, float] = {}
-
-
-def _city_with_lidar_drones(n: int) -> str:
-    lines = ["world: {name: bench_lidar, physics_hz: 240, seed: 42}", "scene: {generator: urban}", "vehicles:"]
-    for i in range(n):
-        # above the north-south streets (x = -72, 0, 72), 15 m up, so that the scans see streets and facades
-        x, y = -72.0 + 72.0 * (i % 3), -130.0 + 260.0 * (i // 3) / max((n - 1) // 3, 1)
-        lines.append(f"  - {{name: d{i}, type: quadrotor, preset: medium, pose: {{position_m: [{x:.1f}, {y:.1f}, 15.0]}},"
-                     f" components: {{lidar: {{vertical_center_deg: -15.0}}}}}}")
-    return "\n".join(lines) + "\n"
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -38,7 +30,7 @@ def _report():
 
 @pytest.mark.parametrize("n_drones", [1, 30, 100])
 def test_lidar_pipeline_for_n_drones(benchmark, n_drones):
-    sim = Simulation(load_world_text(_city_with_lidar_drones(n_drones)))
+    sim = Simulation(load_world_text(city_with_lidar_drones(n_drones)))
     try:
         sim.step(1)
         lidar = next(s for s in sim.ecs.systems if isinstance(s, LidarSystem))
