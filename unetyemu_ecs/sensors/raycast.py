@@ -77,6 +77,27 @@ def ray_starts(exit_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.maximum(exit_m - EXIT_MARGIN_M, 0.0), np.where(exit_m > 0.0, exit_m + EXIT_MARGIN_M, 0.0)
 
 
+def moving_body_candidates(origin_m: np.ndarray, dirs_world: np.ndarray, max_range_m: float, centers_m: np.ndarray,
+                           radii_m: np.ndarray, exclude: int = -1) -> np.ndarray:
+    """Indices of the rays (from ``origin_m`` along unit ``dirs_world`` (M, 3)) that can meet a moving body
+    within ``max_range_m``: those whose line passes within a body's bounding sphere (centres (B, 3),
+    radii (B,)) ahead of the origin. Body ``exclude`` (the sensor's own vehicle, which its rays leave and,
+    being convex, never meet again) is left out. Conservative: every ray that hits a body is kept."""
+    v = centers_m - origin_m                                              # (B, 3)
+    dist = np.linalg.norm(v, axis=1)
+    near = dist - radii_m <= max_range_m
+    if 0 <= exclude < len(near):
+        near[exclude] = False
+    if not near.any():
+        return np.empty(0, dtype=np.intp)
+    v, r, dist = v[near], radii_m[near], dist[near]
+    if np.any(dist <= r):                                                # inside a body's sphere: every ray
+        return np.arange(len(dirs_world))
+    along = dirs_world @ v.T                                              # (M, K) distance to the closest point
+    perp2 = dist ** 2 - along ** 2
+    return np.flatnonzero(((along >= -r) & (perp2 <= r ** 2)).any(axis=1))
+
+
 def box_triangles(centers_m: np.ndarray, quats_xyzw: np.ndarray, half_extents_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (8N, 3) and triangles (12N, 3) of N oriented boxes (outward CCW), world frame."""
     n = len(centers_m)
@@ -110,9 +131,12 @@ class RaycastWorld:
         self._tri_cls = np.asarray(tri_cls, dtype=np.int16)
 
     def cast(self, origins_m: np.ndarray, dirs_world: np.ndarray, start_static_m: np.ndarray,
-             start_dynamic_m: np.ndarray, boxes: tuple[np.ndarray, np.ndarray, np.ndarray] | None) -> RayHits:
+             start_dynamic_m: np.ndarray, boxes: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
+             dynamic_rays: np.ndarray | None = None) -> RayHits:
         """Cast rays (M,) from ``origins`` along unit ``dirs``, starting ``start_*`` metres along them in
-        the static and the moving-body scene. ``boxes`` = (centres, quats, half extents) of moving bodies."""
+        the static and the moving-body scene. ``boxes`` = (centres, quats, half extents) of moving bodies;
+        ``dynamic_rays`` (indices) limits the moving-body cast to the rays that can meet one
+        (:func:`moving_body_candidates`; None: every ray)."""
         o3d = self._o3d
         rays = np.hstack([origins_m + start_static_m[:, None] * dirs_world, dirs_world]).astype(np.float32)
         hit = self.static.cast_rays(o3d.core.Tensor(rays), nthreads=0)
@@ -123,20 +147,25 @@ class RaycastWorld:
         cls = np.full(len(t), NO_HIT, dtype=np.int16)
         cls[found] = self._tri_cls[prim[found]]
         box = np.full(len(t), -1, dtype=np.int64)
-        if boxes is not None and len(boxes[0]):
+        idx = np.arange(len(t)) if dynamic_rays is None else np.asarray(dynamic_rays, dtype=np.intp)
+        if boxes is not None and len(boxes[0]) and idx.size:
             verts, tris = box_triangles(*boxes)
             dyn = o3d.t.geometry.RaycastingScene()
             dyn.add_triangles(o3d.core.Tensor(verts.astype(np.float32)), o3d.core.Tensor(tris.astype(np.uint32)))
-            rays[:, :3] = origins_m + start_dynamic_m[:, None] * dirs_world
-            dhit = dyn.cast_rays(o3d.core.Tensor(rays), nthreads=0)
-            td = dhit["t_hit"].numpy().astype(np.float64) + start_dynamic_m
-            nearer = td < t
-            t = np.where(nearer, td, t)
-            normal = np.where(nearer[:, None], dhit["primitive_normals"].numpy(), normal)
-            cls = np.where(nearer, MOVING_BODY, cls).astype(np.int16)
-            box = np.where(nearer, dhit["primitive_ids"].numpy().astype(np.int64) // 12, box)
+            start = start_dynamic_m[idx]
+            d = dirs_world[idx]
+            sub = np.hstack([origins_m[idx] + start[:, None] * d, d]).astype(np.float32)
+            dhit = dyn.cast_rays(o3d.core.Tensor(sub), nthreads=0)
+            td = dhit["t_hit"].numpy().astype(np.float64) + start
+            nearer = td < t[idx]
+            k = idx[nearer]
+            t[k] = td[nearer]
+            normal = normal.astype(np.float64)
+            normal[k] = dhit["primitive_normals"].numpy()[nearer]
+            cls[k] = MOVING_BODY
+            box[k] = dhit["primitive_ids"].numpy().astype(np.int64)[nearer] // 12
         return RayHits(t, normal.astype(np.float64), cls, box)
 
 
 __all__ = ["EXIT_MARGIN_M", "MOVING_BODY", "NO_HIT", "RayHits", "RaycastWorld", "SensorUnavailable", "box_triangles",
-           "exit_distance_m", "import_open3d", "ray_starts"]
+           "exit_distance_m", "import_open3d", "moving_body_candidates", "ray_starts"]

@@ -13,7 +13,7 @@ from ..components.body import FleetSlot, RigidBody
 from ..frames import R_from_quat_xyzw
 from ..world import StepContext
 from .base import MountedSensor, SensorSystemBase
-from .raycast import RaycastWorld, exit_distance_m, import_open3d, ray_starts
+from .raycast import EXIT_MARGIN_M, RaycastWorld, exit_distance_m, import_open3d, moving_body_candidates, ray_starts
 
 
 class RaycastSensorSystem(SensorSystemBase):
@@ -64,7 +64,9 @@ class RaycastSensorSystem(SensorSystemBase):
         Returns the hits, the world directions (sum M, 3) and each sensor's slice of them.
         """
         pos, R = self.sensor_poses(ctx, due)
-        origins, dirs_w, start_s, start_d, slices, first = [], [], [], [], [], 0
+        boxes = self.moving_boxes(ctx)
+        radii = np.linalg.norm(self._body_half, axis=1) + EXIT_MARGIN_M
+        origins, dirs_w, start_s, start_d, slices, dynamic, first = [], [], [], [], [], [], 0
         for k, (dirs_s, exit_m) in enumerate(rays):
             d_w = dirs_s @ R[k].T
             origins.append(np.broadcast_to(pos[k], d_w.shape))
@@ -73,10 +75,14 @@ class RaycastSensorSystem(SensorSystemBase):
             start_s.append(a)
             start_d.append(b)
             slices.append(slice(first, first + len(dirs_s)))
+            own = int(np.searchsorted(self._body_rows, due[k].row))
+            own = own if own < len(self._body_rows) and self._body_rows[own] == due[k].row else -1
+            dynamic.append(first + moving_body_candidates(pos[k], d_w, getattr(due[k].spec, "max_range_m", np.inf),
+                                                          boxes[0], radii, own))
             first += len(dirs_s)
         dirs_all = np.vstack(dirs_w)
-        hits = self.world.cast(np.vstack(origins), dirs_all, np.concatenate(start_s), np.concatenate(start_d),
-                               self.moving_boxes(ctx))
+        hits = self.world.cast(np.vstack(origins), dirs_all, np.concatenate(start_s), np.concatenate(start_d), boxes,
+                               np.concatenate(dynamic))
         return hits, dirs_all, slices
 
 
