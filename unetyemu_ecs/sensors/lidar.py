@@ -83,7 +83,7 @@ def pointcloud2(points_sensor_m: np.ndarray, intensity: np.ndarray, rings: np.nd
     return msg_type("sensor_msgs/msg/PointCloud2")(
         header=header(time_s, frame_id), height=1, width=len(arr), fields=fields, is_bigendian=False,
         point_step=POINT_DTYPE.itemsize, row_step=POINT_DTYPE.itemsize * len(arr),
-        data=np.frombuffer(arr.tobytes(), dtype=np.uint8), is_dense=True)
+        data=arr.view(np.uint8), is_dense=True)          # the points' bytes, not a copy of them
 
 
 def read_points(msg: Any) -> np.ndarray:
