@@ -96,10 +96,6 @@ class PhysicsClient:
         """Remove a constraint made by :meth:`attach_fixed`."""
         p.removeConstraint(constraint_id, physicsClientId=self.id)
 
-    def touching(self, body: int) -> set[int]:
-        """Ids of the bodies ``body`` was in contact with at the last step."""
-        return {c[2] for c in p.getContactPoints(bodyA=body, physicsClientId=self.id)}
-
     def contact_map(self) -> dict[int, set[int]]:
         """Body id -> ids of the bodies it touched at the last step, for every body in contact (one call)."""
         out: dict[int, set[int]] = {}
