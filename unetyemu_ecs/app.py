@@ -107,10 +107,15 @@ def _check_blas_threads(threads: Any) -> None:
 
 
 def _limit_blas_threads(threads: int | None) -> Any:
-    """Limit BLAS to ``threads`` threads (threadpoolctl); the limiter, to restore them, or None."""
+    """Limit BLAS to ``threads`` threads (threadpoolctl); the limiter, to restore them, or None when nothing
+    was changed (no limit asked, or BLAS already within it: e.g. another open simulation limited it, and
+    then only that one restores it, so simulations closed in any order leave BLAS as it was)."""
     if threads is None:
         return None
-    from threadpoolctl import threadpool_limits
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    if all(lib["num_threads"] <= threads for lib in threadpool_info() if lib["user_api"] == "blas"):
+        return None
 
     return threadpool_limits(limits=threads, user_api="blas")
 

@@ -63,6 +63,11 @@ def test_the_simulation_limits_blas_to_one_thread_while_open_and_gives_the_limit
     assert _blas_threads() == before
     with Simulation(world, blas_threads=None):
         assert _blas_threads() == before
+    # two simulations open at once, closed in the order they were opened: BLAS ends as it was
+    first, second = Simulation(world), Simulation(world)
+    first.close()
+    second.close()
+    assert _blas_threads() == before
     with pytest.raises(ValueError, match=r"blas_threads must be None or an integer in \[1, 256\], got 0"):
         Simulation(world, blas_threads=0)
 
