@@ -45,7 +45,8 @@ from .flight_state import FlightMode
 
 # plain ints of the modes compared with numpy arrays every step (numpy looks an IntEnum operand's type up for
 # its array protocols, several failed lookups through the enum's metaclass: microseconds per comparison)
-_AUTO, _VELOCITY, _MANUAL, _ATTITUDE, _DISARMED = int(FlightMode.AUTO), int(FlightMode.VELOCITY), int(FlightMode.MANUAL), int(FlightMode.ATTITUDE), int(FlightMode.DISARMED)
+_AUTO, _VELOCITY, _MANUAL = int(FlightMode.AUTO), int(FlightMode.VELOCITY), int(FlightMode.MANUAL)
+_ATTITUDE, _DISARMED = int(FlightMode.ATTITUDE), int(FlightMode.DISARMED)
 
 
 def box_inertia_flu_kg_m2(mass_kg: np.ndarray, half_extents_m: np.ndarray) -> np.ndarray:

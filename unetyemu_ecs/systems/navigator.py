@@ -794,8 +794,8 @@ class NavigatorSystem(esper.Processor):
                 disarm(ctx, ent, row, f"armed {delay:g} s without taking off (COM_DISARM_PRFLT)")
 
 
-__all__ = ["LandDetectorSystem", "NavigatorSystem", "arm_block", "arm_blocks", "arming_refusal", "brake_and_hold", "disarm",
-           "enforce_fence", "ensure_all_drones", "ensure_nav", "fence_active", "fence_breach", "fly_follow", "fly_manual",
-           "fly_offboard", "fly_orbit", "follow_fresh", "hold", "land_route", "manual_fresh", "offboard_fresh",
-           "offboard_lost", "rtl_destination", "start_follow", "start_land", "start_orbit", "start_rtl",
-           "start_takeoff"]
+__all__ = ["LandDetectorSystem", "NavigatorSystem", "arm_block", "arm_blocks", "arming_refusal", "brake_and_hold",
+           "disarm", "enforce_fence", "ensure_all_drones", "ensure_nav", "fence_active", "fence_breach", "fly_follow",
+           "fly_manual", "fly_offboard", "fly_orbit", "follow_fresh", "hold", "land_route", "manual_fresh",
+           "offboard_fresh", "offboard_lost", "rtl_destination", "start_follow", "start_land", "start_orbit",
+           "start_rtl", "start_takeoff"]
