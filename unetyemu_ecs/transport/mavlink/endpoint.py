@@ -148,7 +148,7 @@ class DroneEndpoint:
         self.commands = {"accepted": 0, "rejected": 0, "unsupported": 0, "denied": 0, "expired": 0}
         self.unhandled_messages = 0
         self.setpoints_rejected = 0
-        self.said_attitude_rates = False
+        self.said_attitude_refusal = False
         self.mission_ids: set[int] = set()
         self.missions = MissionService(vehicle, self.sysid, self.compid, origin, layout, self._submit_mission)
         self.handles = MissionService.HANDLES
@@ -559,8 +559,8 @@ class DroneEndpoint:
         mask = int(msg.type_mask)
         if mask & (ATT_IGNORE_ATTITUDE | ATT_IGNORE_THRUST | ATT_THRUST_BODY_SET):
             self.setpoints_rejected += 1
-            if not self.said_attitude_rates:
-                self.said_attitude_rates = True
+            if not self.said_attitude_refusal:
+                self.said_attitude_refusal = True
                 self.statustext("SET_ATTITUDE_TARGET needs q and thrust (no rates)", SEVERITY_WARNING, links=[link])
             return
         q_wxyz = np.array(msg.q, dtype=float)
