@@ -93,9 +93,10 @@ def moving_body_candidates(origin_m: np.ndarray, dirs_world: np.ndarray, max_ran
     v, r, dist = v[near], radii_m[near], dist[near]
     if np.any(dist <= r):                                                # inside a body's sphere: every ray
         return np.arange(len(dirs_world))
-    along = dirs_world @ v.T                                              # (M, K) distance to the closest point
-    perp2 = dist ** 2 - along ** 2
-    return np.flatnonzero(((along >= -r) & (perp2 <= r ** 2)).any(axis=1))
+    # a ray from outside a sphere meets it iff its angle to the centre is at most asin(r / dist), i.e. its
+    # projection on the centre's direction reaches the tangent point: along >= sqrt(dist^2 - r^2)
+    along = dirs_world @ v.T                                              # (M, K)
+    return np.flatnonzero((along >= np.sqrt(dist ** 2 - r ** 2)).any(axis=1))
 
 
 def box_triangles(centers_m: np.ndarray, quats_xyzw: np.ndarray, half_extents_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -138,7 +139,9 @@ class RaycastWorld:
         ``dynamic_rays`` (indices) limits the moving-body cast to the rays that can meet one
         (:func:`moving_body_candidates`; None: every ray)."""
         o3d = self._o3d
-        rays = np.hstack([origins_m + start_static_m[:, None] * dirs_world, dirs_world]).astype(np.float32)
+        rays = np.empty((len(dirs_world), 6), dtype=np.float32)             # Open3D's (origin, direction) rows
+        rays[:, :3] = origins_m + start_static_m[:, None] * dirs_world
+        rays[:, 3:] = dirs_world
         hit = self.static.cast_rays(o3d.core.Tensor(rays), nthreads=0)
         t = hit["t_hit"].numpy().astype(np.float64) + start_static_m
         normal = hit["primitive_normals"].numpy()
@@ -154,7 +157,9 @@ class RaycastWorld:
             dyn.add_triangles(o3d.core.Tensor(verts.astype(np.float32)), o3d.core.Tensor(tris.astype(np.uint32)))
             start = start_dynamic_m[idx]
             d = dirs_world[idx]
-            sub = np.hstack([origins_m[idx] + start[:, None] * d, d]).astype(np.float32)
+            sub = np.empty((len(idx), 6), dtype=np.float32)
+            sub[:, :3] = origins_m[idx] + start[:, None] * d
+            sub[:, 3:] = d
             dhit = dyn.cast_rays(o3d.core.Tensor(sub), nthreads=0)
             td = dhit["t_hit"].numpy().astype(np.float64) + start
             nearer = td < t[idx]
