@@ -6,6 +6,7 @@ Usage:
     python3 benchmarks/stress.py flight-1 lidar-60    # the named cases
     python3 benchmarks/stress.py --list               # the case names
     python3 benchmarks/stress.py --seconds 5 --json   # longer runs; one JSON object per row
+    python3 benchmarks/stress.py lidar-10 --seconds 600 --rss-every 60 --json   # memory over 10 simulated minutes
 
 Each case runs in a fresh interpreter (so peak RSS is that case's alone): it builds its world, lets
 it settle, then simulates ``--seconds`` of sim time with the per-system profile on (see
@@ -64,7 +65,16 @@ def camera_world(k: int, width: int, height: int) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run_case(case: str, seconds: float) -> dict:
+def rss_mb() -> float:
+    """Resident set size of this process now [MB] (Linux /proc; the peak where /proc is missing)."""
+    try:
+        with open("/proc/self/statm", encoding="ascii") as fh:
+            return int(fh.read().split()[1]) * resource.getpagesize() / 2**20
+    except OSError:
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def run_case(case: str, seconds: float, rss_every_s: float = 0.0) -> dict:
     """Build and run one case in this process; return its row."""
     from unetyemu_ecs import Simulation, load_world_text
     from unetyemu_ecs.config.world_file import load_world
@@ -100,13 +110,17 @@ def run_case(case: str, seconds: float) -> dict:
         sim.profile_steps()
         wall0, cpu0, t0 = time.perf_counter(), time.process_time(), sim.sim_time_s
         leg = 0
+        rss_samples: list[list[float]] = [[0.0, round(rss_mb(), 1)]]
         while sim.sim_time_s - t0 < seconds - 1e-9:
             if shuttle and (sim.sim_time_s - t0) >= 5.0 * leg:      # a new 20 m leg every 5 s
                 for name in shuttle:
                     x, y, _ = starts[name]
                     sim.set_target(name, x + (20.0 if leg % 2 == 0 else 0.0), y, 10.0)
                 leg += 1
-            sim.run(duration=min(1.0, seconds - (sim.sim_time_s - t0)))
+            sim.run(duration=min(1.0, seconds - (sim.sim_time_s - t0), rss_every_s or math.inf))
+            elapsed = sim.sim_time_s - t0
+            if rss_every_s > 0 and elapsed + 1e-9 >= rss_samples[-1][0] + rss_every_s:
+                rss_samples.append([round(elapsed, 3), round(rss_mb(), 1)])
         wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
         profile = sim.step_profile
         steps = max(profile.steps, 1)
@@ -117,7 +131,8 @@ def run_case(case: str, seconds: float) -> dict:
     return {"case": case, "drones": n, "sim_s": round(sim_s, 3), "rtf_wall": round(sim_s / wall, 3),
             "rtf_cpu": round(sim_s / cpu, 3), "ms_per_step": round(1000.0 * wall / steps, 3),
             "phase_ms_per_step": {k: round(v, 3) for k, v in phase_ms.items()},
-            "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, 1)}
+            "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, 1),
+            **({"rss_mb_at_sim_s": rss_samples} if rss_every_s > 0 else {})}
 
 
 def format_row(row: dict) -> str:
@@ -137,6 +152,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("cases", nargs="*", help="case names (default: all; --list shows them)")
     parser.add_argument("--seconds", type=float, default=2.0, help="simulated seconds measured per case (default 2)")
     parser.add_argument("--json", action="store_true", help="print one JSON object per row instead of a table")
+    parser.add_argument("--rss-every", type=float, default=0.0, metavar="S",
+                        help="also sample the resident memory every S simulated seconds (memory growth; with --json)")
     parser.add_argument("--list", action="store_true", help="list the case names and exit")
     parser.add_argument("--in-process", metavar="CASE", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
@@ -145,8 +162,10 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if not (math.isfinite(args.seconds) and 0.1 <= args.seconds <= 3600.0):
         parser.error(f"--seconds must be in [0.1, 3600], got {args.seconds}")
+    if not (math.isfinite(args.rss_every) and 0.0 <= args.rss_every <= args.seconds):
+        parser.error(f"--rss-every must be in [0, --seconds], got {args.rss_every}")
     if args.in_process:
-        print(json.dumps(run_case(args.in_process, args.seconds)))
+        print(json.dumps(run_case(args.in_process, args.seconds, args.rss_every)))
         return 0
     unknown = [c for c in args.cases if c not in CASES]
     if unknown:
@@ -155,7 +174,8 @@ def main(argv: list[str] | None = None) -> int:
         print(header(), flush=True)
     failed = 0
     for case in args.cases or CASES:
-        res = subprocess.run([sys.executable, __file__, "--in-process", case, "--seconds", str(args.seconds)],
+        res = subprocess.run([sys.executable, __file__, "--in-process", case, "--seconds", str(args.seconds),
+                              "--rss-every", str(args.rss_every)],
                              capture_output=True, text=True, cwd=REPO)
         if res.returncode != 0:
             print(f"{case}: failed\n{res.stderr[-2000:]}", file=sys.stderr)

@@ -74,12 +74,14 @@ def test_the_simulation_limits_blas_to_one_thread_while_open_and_gives_the_limit
 
 def test_the_stress_script_prints_one_row_per_case_with_rates_phases_and_memory():
     res = subprocess.run([sys.executable, str(REPO_ROOT / "benchmarks" / "stress.py"), "flight-1", "--seconds", "0.5",
-                          "--json"], cwd=REPO_ROOT, capture_output=True, text=True, timeout=300)
+                          "--rss-every", "0.25", "--json"], cwd=REPO_ROOT, capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stderr
     (row,) = [json.loads(line) for line in res.stdout.splitlines() if line.startswith("{")]
     assert row["case"] == "flight-1" and row["drones"] == 1 and row["sim_s"] == pytest.approx(0.5)
     assert row["rtf_wall"] > 0 and row["rtf_cpu"] > 0 and row["peak_rss_mb"] > 50
     assert row["phase_ms_per_step"]["PHYSICS"] > 0 and row["phase_ms_per_step"]["GUIDANCE"] > 0
+    assert [t for t, _ in row["rss_mb_at_sim_s"]] == [0.0, 0.25, 0.5]                  # memory sampled as asked
+    assert all(mb > 50 for _, mb in row["rss_mb_at_sim_s"])
     bad = subprocess.run([sys.executable, str(REPO_ROOT / "benchmarks" / "stress.py"), "flight-7"], cwd=REPO_ROOT,
                          capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2 and "unknown case(s) flight-7" in bad.stderr
