@@ -41,12 +41,7 @@ from ..plugins import ControllerPlugin
 from ..units import GRAVITY_M_S2
 from ..world import StepContext
 from .fleet_system import FleetSystem, stack_params, take_params
-from .flight_state import FlightMode
-
-# plain ints of the modes compared with numpy arrays every step (numpy looks an IntEnum operand's type up for
-# its array protocols, several failed lookups through the enum's metaclass: microseconds per comparison)
-_AUTO, _VELOCITY, _MANUAL = int(FlightMode.AUTO), int(FlightMode.VELOCITY), int(FlightMode.MANUAL)
-_ATTITUDE, _DISARMED = int(FlightMode.ATTITUDE), int(FlightMode.DISARMED)
+from .flight_state import MODE_ATTITUDE, MODE_AUTO, MODE_DISARMED, MODE_MANUAL, MODE_VELOCITY
 
 
 def box_inertia_flu_kg_m2(mass_kg: np.ndarray, half_extents_m: np.ndarray) -> np.ndarray:
@@ -163,7 +158,7 @@ class PositionControllerSystem(DroneControllerSystem):
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
         mode = f.flight_mode[self.rows]
-        active = ((mode == _AUTO) & f.has_route[self.rows]) | (mode == _VELOCITY)
+        active = ((mode == MODE_AUTO) & f.has_route[self.rows]) | (mode == MODE_VELOCITY)
         self.restart_on_entry(ctx, mode, active)
         k = np.flatnonzero(active)
         if k.size == 0:
@@ -196,7 +191,7 @@ class AttitudeControllerSystem(DroneControllerSystem):
         f = ctx.fleet
         r = self.rows
         mode = f.flight_mode[r]
-        manual = mode == _MANUAL
+        manual = mode == MODE_MANUAL
         if manual.any():
             a, rm = self.airframe, r[manual]
             vz_sp, roll_sp, pitch_sp, yaw_rate_sp = manual_to_setpoints(
@@ -206,12 +201,12 @@ class AttitudeControllerSystem(DroneControllerSystem):
             f.roll_sp_rad[rm] = roll_sp
             f.pitch_sp_rad[rm] = pitch_sp
             f.yaw_rate_sp_rad_s[rm] = yaw_rate_sp
-        attitude = mode == _ATTITUDE
+        attitude = mode == MODE_ATTITUDE
         if attitude.any():
             f.vz_sp_m_s[r[attitude]] = f.vel_enu_m_s[r[attitude], 2]
         sp = AttitudeSetpoint(f.vz_sp_m_s[r], f.roll_sp_rad[r], f.pitch_sp_rad[r], f.yaw_rate_sp_rad_s[r])
         out: ThrustTorqueCommand = self.call_law(ctx, sp, self.state(ctx, r), self.airframe, self.params, r)
-        armed = mode != _DISARMED
+        armed = mode != MODE_DISARMED
         thrust = np.where(attitude, f.thrust_cmd_frac[r], out.thrust_frac) if attitude.any() else out.thrust_frac
         f.thrust_frac_sp[r] = np.where(armed, thrust, 0.0)
         f.torque_cmd[r] = np.where(armed[:, None], out.torque_cmd, 0.0)
@@ -231,7 +226,7 @@ class MixerSystem(DroneControllerSystem):
         cmd = ThrustTorqueCommand(f.thrust_frac_sp[r], f.torque_cmd[r])
         out = self.call_law(ctx, cmd, self.state(ctx, r), self.airframe, self.params, r)
         f.motor_frac_cmd[r] = np.clip(finite_or_zero(out.motor_frac), 0.0, 1.0)
-        disarmed = f.flight_mode[r] == _DISARMED
+        disarmed = f.flight_mode[r] == MODE_DISARMED
         if disarmed.any() and self._memory_names:
             self.reset_memory(ctx, r[disarmed])
 

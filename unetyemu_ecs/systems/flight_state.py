@@ -101,6 +101,16 @@ class PayloadResult(IntEnum):
     OVERWEIGHT = 4
 
 
+# The members per-step code compares with numpy arrays, as plain ints: numpy looks an IntEnum operand's type
+# up for its array protocols (failed lookups through the enum's metaclass, microseconds per comparison).
+MODE_DISARMED, MODE_MANUAL, MODE_AUTO = int(FlightMode.DISARMED), int(FlightMode.MANUAL), int(FlightMode.AUTO)
+MODE_VELOCITY, MODE_ATTITUDE = int(FlightMode.VELOCITY), int(FlightMode.ATTITUDE)
+NAV_OFFBOARD, NAV_POSCTL, NAV_MANUAL = int(NavState.OFFBOARD), int(NavState.POSCTL), int(NavState.MANUAL)
+LANDED_UNDEFINED, LANDED_ON_GROUND = int(LandedState.UNDEFINED), int(LandedState.ON_GROUND)
+MISSION_RUNNING = int(MissionState.RUNNING)
+REQUEST_NONE = int(PayloadRequest.NONE)
+
+
 @dataclass(frozen=True)
 class Route:
     """A polyline to follow: point 0 is where the drone was when the route was given.

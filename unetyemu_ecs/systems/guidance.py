@@ -18,11 +18,7 @@ from ..frames import yaw_rad_from_quat_xyzw
 from ..phases import Phase
 from ..world import StepContext
 from .fleet_system import FleetSystem
-from .flight_state import FlightMode
-
-# plain ints of the modes compared with numpy arrays every step (numpy looks an IntEnum operand's type up for
-# its array protocols, several failed lookups through the enum's metaclass: microseconds per comparison)
-_AUTO, _VELOCITY = int(FlightMode.AUTO), int(FlightMode.VELOCITY)
+from .flight_state import MODE_AUTO, MODE_VELOCITY
 
 
 class RouteFollowingSystem(FleetSystem):
@@ -82,10 +78,10 @@ class RouteFollowingSystem(FleetSystem):
         if changed.size:
             self._load_routes(f, changed)
         mode = f.flight_mode[rows]
-        auto = (mode == _AUTO) & f.has_route[rows]
+        auto = (mode == MODE_AUTO) & f.has_route[rows]
         if auto.any():
             self._follow_routes(ctx, np.flatnonzero(auto))
-        velocity = mode == _VELOCITY
+        velocity = mode == MODE_VELOCITY
         if velocity.any():
             self._velocity_setpoints(ctx, np.flatnonzero(velocity))
 

@@ -21,11 +21,7 @@ from ..frames import R_from_quat_xyzw
 from ..phases import Phase
 from ..world import StepContext
 from .fleet_system import FleetSystem
-from .flight_state import FlightMode
-
-# plain ints of the modes compared with numpy arrays every step (numpy looks an IntEnum operand's type up for
-# its array protocols, several failed lookups through the enum's metaclass: microseconds per comparison)
-_DISARMED = int(FlightMode.DISARMED)
+from .flight_state import MODE_DISARMED
 
 
 class MotorSystem(FleetSystem):
@@ -52,7 +48,7 @@ class MotorSystem(FleetSystem):
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
         r = self.rows
-        live = (f.flight_mode[r] != _DISARMED) & f.motors_enabled[r]
+        live = (f.flight_mode[r] != MODE_DISARMED) & f.motors_enabled[r]
         cmd = f.motor_frac_cmd[r] * (self._f_max * live)[:, None]
         f.motor_thrust_cmd_n[r] = cmd
         if ctx.dt_s != self._alpha_dt_s:

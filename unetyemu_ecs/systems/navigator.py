@@ -35,14 +35,11 @@ from ..phases import Phase
 from ..transport.api import CommandStatus
 from ..world import StepContext
 from .commands import Refusal
-from .flight_state import ArmBlock, FlightMode, LandedState, MissionState, NavState, Route, set_route
+from .flight_state import (LANDED_ON_GROUND, LANDED_UNDEFINED, MISSION_RUNNING, MODE_DISARMED, NAV_MANUAL,
+                           NAV_OFFBOARD, NAV_POSCTL, ArmBlock, FlightMode, LandedState, MissionState, NavState, Route,
+                           set_route)
 
 _NOTHING: frozenset[int] = frozenset()
-# plain ints of the states the per-drone loops compare with and write (a numpy scalar met with an IntEnum
-# looks the enum's type up for numpy's protocols, which costs microseconds each)
-_DISARMED, _ON_GROUND, _UNDEFINED = int(FlightMode.DISARMED), int(LandedState.ON_GROUND), int(LandedState.UNDEFINED)
-_OFFBOARD, _POSCTL, _MANUAL = int(NavState.OFFBOARD), int(NavState.POSCTL), int(NavState.MANUAL)
-_RUNNING = int(MissionState.RUNNING)
 LAND_TRIGGER_S = 0.3        # the land-detector conditions must hold this long (PX4 LandDetector trigger time)
 LAND_BELOW_M = 0.3          # a landing aims this far below the resting height, so touchdown happens
 TAKEOFF_DONE_M = 0.3        # TAKEOFF is done within this height of its altitude
@@ -610,7 +607,7 @@ def arm_blocks(f: Any, rows: np.ndarray, fence_why: list[str]) -> np.ndarray:
     overweight = motors_off & (f.payload_kg[rows] > max_payload[rows])
     outside = np.array([bool(w) for w in fence_why], dtype=bool)
     landed = f.landed_state[rows]
-    in_air = (landed != _ON_GROUND) & (landed != _UNDEFINED)
+    in_air = (landed != LANDED_ON_GROUND) & (landed != LANDED_UNDEFINED)
     codes = np.select([low, overweight, motors_off, outside, in_air],
                       [int(ArmBlock.LOW_BATTERY), int(ArmBlock.OVERWEIGHT), int(ArmBlock.MOTORS_DISABLED),
                        int(ArmBlock.OUTSIDE_FENCE), int(ArmBlock.IN_AIR)], default=int(ArmBlock.NONE))
@@ -656,17 +653,18 @@ class LandDetectorSystem(esper.Processor):
             if still:
                 if math.isnan(nav.contact_since_s):
                     nav.contact_since_s = t
-                on_ground = prev in (_UNDEFINED, _ON_GROUND) or t - nav.contact_since_s >= LAND_TRIGGER_S - 1e-9
+                on_ground = (prev in (LANDED_UNDEFINED, LANDED_ON_GROUND)
+                             or t - nav.contact_since_s >= LAND_TRIGGER_S - 1e-9)
             else:
                 nav.contact_since_s = math.nan
                 on_ground = False
             if on_ground:
-                if prev != _ON_GROUND:
+                if prev != LANDED_ON_GROUND:
                     nav.ground_since_s = t
-                    f.landed_state[row] = _ON_GROUND
+                    f.landed_state[row] = LANDED_ON_GROUND
                 continue
             nav.ground_since_s = math.nan
-            if modes[k] != _DISARMED:
+            if modes[k] != MODE_DISARMED:
                 nav.took_off = True
             f.landed_state[row] = int(self._airborne_state(ent, nav_states[k], nav))
 
@@ -715,25 +713,25 @@ class NavigatorSystem(esper.Processor):
         modes, nav_states = f.flight_mode[rows].tolist(), f.nav_state[rows].tolist()
         for k, (ent, (slot, nav, params)) in enumerate(drones):
             row = slot.row
-            if modes[k] == _DISARMED:
+            if modes[k] == MODE_DISARMED:
                 if nav.mode:
                     _set_mode(nav, "", "", t, None)
                 nav.took_off, nav.armed_s = False, math.nan
                 continue
             if nav.mode:
                 self._advance(ctx, ent, row, nav, params)
-            elif nav_states[k] == _OFFBOARD and nav.offboard is not None:
+            elif nav_states[k] == NAV_OFFBOARD and nav.offboard is not None:
                 if offboard_fresh(nav, params, t):
                     fly_offboard(ctx, ent, row, nav, params, new=False)
                 else:
                     offboard_lost(ctx, ent, row, nav, params)
-            elif nav_states[k] in (_POSCTL, _MANUAL) and nav.manual is not None:
+            elif nav_states[k] in (NAV_POSCTL, NAV_MANUAL) and nav.manual is not None:
                 if manual_fresh(nav, params, t):
                     fly_manual(ctx, row, nav, params)
                 else:
                     manual_lost(ctx, ent, row, nav, params)
-            on_ground = int(f.landed_state[row]) == _ON_GROUND
-            if not on_ground and int(f.flight_mode[row]) != _DISARMED:
+            on_ground = int(f.landed_state[row]) == LANDED_ON_GROUND
+            if not on_ground and int(f.flight_mode[row]) != MODE_DISARMED:
                 if fenced[k]:
                     enforce_fence(ctx, ent, row, nav, params)
                 else:
@@ -781,7 +779,7 @@ class NavigatorSystem(esper.Processor):
 
     def _auto_disarm(self, ctx: StepContext, ent: int, row: int, nav: NavRuntime, params: FlightParams) -> None:
         f = ctx.fleet
-        if int(f.landed_state[row]) != _ON_GROUND or int(f.mission_state[row]) == _RUNNING:
+        if int(f.landed_state[row]) != LANDED_ON_GROUND or int(f.mission_state[row]) == MISSION_RUNNING:
             return
         t = ctx.sim_time_s
         if nav.took_off:

@@ -20,11 +20,7 @@ from ..components.flight import PayloadBay
 from ..phases import Phase
 from ..world import StepContext
 from .fleet_system import FleetSystem
-from .flight_state import PayloadRequest, PayloadResult
-
-# plain ints of the requests compared with numpy arrays every step (numpy looks an IntEnum operand's type up for
-# its array protocols, several failed lookups through the enum's metaclass: microseconds per comparison)
-_NO_REQUEST = int(PayloadRequest.NONE)
+from .flight_state import REQUEST_NONE, PayloadRequest, PayloadResult
 
 
 @dataclass(frozen=True)
@@ -57,7 +53,7 @@ class PayloadSystem(FleetSystem):
         f = ctx.fleet
         r = self.rows
         bays = self.components[0]
-        pending = np.flatnonzero(f.payload_request[r] != _NO_REQUEST)
+        pending = np.flatnonzero(f.payload_request[r] != REQUEST_NONE)
         for k in pending.tolist():
             row = int(r[k])
             request = int(f.payload_request[row])

@@ -26,7 +26,7 @@ from ..components.mission import MissionRuntime
 from ..navigation.params import FlightParams
 from ..phases import Phase
 from ..systems.car_state import DriveMode
-from ..systems.flight_state import FlightMode
+from ..systems.flight_state import MODE_DISARMED
 from .api import Snapshot
 
 # fleet array -> snapshot array (same name); "armed" is derived (a drone not DISARMED, a car not PARKED)
@@ -36,7 +36,7 @@ SNAPSHOT_ARRAYS = ("pos_enu_m", "vel_enu_m_s", "acc_enu_m_s2", "quat_enu_flu_xyz
                    "mission_step", "mission_state", "speed_limit_m_s", "arm_block")
 IDLE_STATUS = MappingProxyType({"mission": None, "state": "idle"})     # a drone without a mission
 _NO_PARAMS: Any = MappingProxyType({})
-_DISARMED, _PARKED = int(FlightMode.DISARMED), int(DriveMode.PARKED)    # plain ints: enum lookups cost
+_PARKED = int(DriveMode.PARKED)    # a plain int, like flight_state.MODE_DISARMED: enum lookups cost
 
 
 class SnapshotBuilder:
@@ -74,7 +74,7 @@ class SnapshotBuilder:
             a = getattr(f, name).take(rows, axis=0)    # a copy (take: the cheapest way here)
             a.setflags(write=False)
             arrays[name] = a
-        armed = (arrays["flight_mode"] != _DISARMED) & self._drone
+        armed = (arrays["flight_mode"] != MODE_DISARMED) & self._drone
         armed |= (f.drive_mode.take(rows) != _PARKED) & self._car
         armed.setflags(write=False)
         arrays["armed"] = armed
