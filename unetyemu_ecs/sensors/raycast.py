@@ -144,7 +144,7 @@ class RaycastWorld:
         rays[:, 3:] = dirs_world
         hit = self.static.cast_rays(o3d.core.Tensor(rays), nthreads=0)
         t = hit["t_hit"].numpy().astype(np.float64) + start_static_m
-        normal = hit["primitive_normals"].numpy()
+        normal = hit["primitive_normals"].numpy().astype(np.float64)
         prim = hit["primitive_ids"].numpy()
         found = np.isfinite(t)
         cls = np.full(len(t), NO_HIT, dtype=np.int16)
@@ -165,11 +165,10 @@ class RaycastWorld:
             nearer = td < t[idx]
             k = idx[nearer]
             t[k] = td[nearer]
-            normal = normal.astype(np.float64)
             normal[k] = dhit["primitive_normals"].numpy()[nearer]
             cls[k] = MOVING_BODY
             box[k] = dhit["primitive_ids"].numpy().astype(np.int64)[nearer] // 12
-        return RayHits(t, normal.astype(np.float64), cls, box)
+        return RayHits(t, normal, cls, box)
 
 
 __all__ = ["EXIT_MARGIN_M", "MOVING_BODY", "NO_HIT", "RayHits", "RaycastWorld", "SensorUnavailable", "box_triangles",

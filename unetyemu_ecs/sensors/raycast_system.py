@@ -25,6 +25,7 @@ class RaycastSensorSystem(SensorSystemBase):
         self.world: RaycastWorld | None = None
         self._body_rows = np.empty(0, dtype=np.intp)
         self._body_half = np.empty((0, 3))
+        self._body_radius = np.empty(0)
 
     def gather(self, ctx: StepContext) -> None:
         super().gather(ctx)
@@ -36,6 +37,7 @@ class RaycastSensorSystem(SensorSystemBase):
                        for _, (slot, body) in esper.get_components(FleetSlot, RigidBody))
         self._body_rows = np.array([r for r, _ in found], dtype=np.intp)
         self._body_half = np.array([h for _, h in found], dtype=float).reshape(-1, 3)
+        self._body_radius = np.linalg.norm(self._body_half, axis=1) + EXIT_MARGIN_M      # bounding spheres
 
     def own_exit_m(self, sensor: MountedSensor, dirs_sensor: np.ndarray) -> np.ndarray:
         """Where each ray (sensor frame) leaves the sensor's own vehicle box [m]."""
@@ -65,7 +67,6 @@ class RaycastSensorSystem(SensorSystemBase):
         """
         pos, R = self.sensor_poses(ctx, due)
         boxes = self.moving_boxes(ctx)
-        radii = np.linalg.norm(self._body_half, axis=1) + EXIT_MARGIN_M
         origins, dirs_w, start_s, start_d, slices, dynamic, first = [], [], [], [], [], [], 0
         for k, (dirs_s, exit_m) in enumerate(rays):
             d_w = dirs_s @ R[k].T
@@ -78,7 +79,7 @@ class RaycastSensorSystem(SensorSystemBase):
             own = int(np.searchsorted(self._body_rows, due[k].row))
             own = own if own < len(self._body_rows) and self._body_rows[own] == due[k].row else -1
             dynamic.append(first + moving_body_candidates(pos[k], d_w, getattr(due[k].spec, "max_range_m", np.inf),
-                                                          boxes[0], radii, own))
+                                                          boxes[0], self._body_radius, own))
             first += len(dirs_s)
         dirs_all = np.vstack(dirs_w)
         hits = self.world.cast(np.vstack(origins), dirs_all, np.concatenate(start_s), np.concatenate(start_d), boxes,

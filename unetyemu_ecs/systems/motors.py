@@ -40,10 +40,10 @@ class MotorSystem(FleetSystem):
         (comps,) = self.components
         self._f_max = np.array([c.max_thrust_per_motor_n for c in comps])
         self._kappa = np.array([c.yaw_moment_coeff_m for c in comps])
-        self._tau = np.array([c.motor_tau_s for c in comps])
+        tau = np.array([c.motor_tau_s for c in comps], dtype=float)
+        self._alpha = np.where(tau > 0.0, 1.0 - np.exp(-ctx.dt_s / np.maximum(tau, 1e-12)), 1.0)   # lag per step
         self._torque_matrix = rotor_torque_matrix_flu(motor_positions_flu_m(np.array([c.arm_length_m for c in comps])),
                                                       self._kappa)                    # (M, 3, 4)
-        self._alpha_dt_s = -1.0                    # the dt of the cached lag factors
 
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
@@ -51,9 +51,6 @@ class MotorSystem(FleetSystem):
         live = (f.flight_mode[r] != MODE_DISARMED) & f.motors_enabled[r]
         cmd = f.motor_frac_cmd[r] * (self._f_max * live)[:, None]
         f.motor_thrust_cmd_n[r] = cmd
-        if ctx.dt_s != self._alpha_dt_s:
-            self._alpha = np.where(self._tau > 0.0, 1.0 - np.exp(-ctx.dt_s / np.maximum(self._tau, 1e-12)), 1.0)
-            self._alpha_dt_s = ctx.dt_s
         thrust = f.motor_thrust_n[r] + self._alpha[:, None] * (cmd - f.motor_thrust_n[r])
         thrust = np.where(live[:, None], thrust, 0.0)        # a disabled motor stops at once
         f.motor_thrust_n[r] = thrust

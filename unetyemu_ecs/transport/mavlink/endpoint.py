@@ -34,7 +34,6 @@ from .link import Link
 from .missions import MissionService
 from .telemetry import RowView, build
 
-
 PARAM_REAL32, PARAM_INT32 = 9, 6
 PENDING_TIMEOUT_S = 10.0                  # wall clock: a command whose result never comes is forgotten
 MAX_Z_M = 10_000.0
@@ -151,7 +150,6 @@ class DroneEndpoint:
         self.said_attitude_refusal = False
         self.mission_ids: set[int] = set()
         self.missions = MissionService(vehicle, self.sysid, self.compid, origin, layout, self._submit_mission)
-        self.handles = MissionService.HANDLES
 
     # -- life cycle (transport thread) ---------------------------------------------------------------
 
@@ -198,7 +196,7 @@ class DroneEndpoint:
 
     def handle(self, msg: Any, link: Link, addr: tuple[str, int], now_s: float) -> None:
         mid = msg.get_msgId()
-        if mid in self.handles:
+        if mid in MissionService.HANDLES:
             self.missions.handle(msg, link, now_s)
         elif mid in (75, 76):
             self.on_command(msg, link, addr, now_s)
@@ -275,10 +273,6 @@ class DroneEndpoint:
             return                       # answered here (stateless) or unsupported
         command_id = self.submit(command)
         self.pending[command_id] = Pending(link, addr, src, cmd, now_s)
-
-    def step_of_seq(self, seq: int) -> int | None:
-        """Mission step of MAVLink item ``seq`` (MISSION_START and DO_SET_MISSION_CURRENT number items)."""
-        return self.missions.step_of_seq(seq)
 
     def home_alt_amsl(self) -> float:
         view = self.current_view()
@@ -387,14 +381,14 @@ class DroneEndpoint:
             first = 0 if math.isnan(p[0]) else p[0]
             if not (_finite(first) and first >= 0 and first == int(first)):
                 raise Denied(f"first item {p[0]} must be a whole number >= 0")
-            step = self.step_of_seq(int(first))
+            step = self.missions.step_of_seq(int(first))
             if step is None and first != 0:
                 raise Denied(f"the uploaded mission has no item {int(first)}")
             return bus.StartMission(v, check_mission_step(v, step or 0), **mk)        # no mission at all: the simulation refuses
         if cmd == CMD_DO_SET_MISSION_CURRENT:
             if not (_finite(p[0]) and p[0] >= 0 and p[0] == int(p[0])):
                 raise Denied(f"mission item {p[0]} must be a whole number >= 0")
-            step = self.step_of_seq(int(p[0]))
+            step = self.missions.step_of_seq(int(p[0]))
             if step is None:
                 raise Denied(f"the uploaded mission has no item {int(p[0])}")
             return bus.SetMissionCurrent(v, check_mission_step(v, step), **mk)
