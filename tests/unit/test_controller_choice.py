@@ -282,3 +282,30 @@ def test_a_controller_law_that_breaks_is_named_in_the_error(reg):
         with pytest.raises(RuntimeError, match=r"attitude controller 'broken' failed at t = 0.0000 s: TypeError: "
                                                r"it returned a AttitudeSetpoint, not a ThrustTorqueCommand"):
             sim.step()
+
+
+def law_that_writes_into_the_state(sp, state, airframe, params, memory, dt_s):
+    """A law with a bug: it moves the drone by writing into the state it was given."""
+    state.pos_enu_m[:, 2] += 100.0
+    return ThrustTorqueCommand(np.zeros(1), np.zeros((1, 3))), {}
+
+
+def test_a_controller_law_cannot_move_the_drone_by_writing_into_its_state(reg):
+    local = Registry()
+    for group in GROUPS:
+        for key, entry in reg.entries[group].items():
+            local.add(group, key, entry.spec, entry.provider)
+
+    @dataclass(frozen=True)
+    class WriterParams:
+        gain: Annotated[float, Ge(0.0), Le(1.0)] = 0.5
+
+    local.add(GROUP_CONTROLLERS, "writer", ControllerPlugin(layer="attitude", params=WriterParams,
+                                                            law=law_that_writes_into_the_state, memory={}))
+    with Simulation(load_world_text(world("    controller: {attitude: writer}\n"), "w.yaml", registry=local)) as sim:
+        z0 = float(sim.position_enu_m("d1")[2])
+        # THEN the state a law receives is read-only: the error names the controller, the fleet is untouched
+        with pytest.raises(RuntimeError, match=r"attitude controller 'writer' failed at t = 0.0000 s: ValueError: "
+                                               r".*read-only"):
+            sim.step()
+        assert float(sim.position_enu_m("d1")[2]) == z0

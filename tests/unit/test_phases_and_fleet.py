@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from unetyemu_ecs.fleet import FleetState
+from unetyemu_ecs.fleet import FleetState, row_selector
 from unetyemu_ecs.phases import Phase, phase_named, priority
 
 
@@ -49,6 +49,7 @@ def test_fleet_reuses_a_freed_row_and_bumps_its_version():
     # THEN the freed row is reused, reset, and the new entity maps to it
     assert row == 1 and fleet.row_of(4) == 1 and fleet.body_id[1] == 14
     np.testing.assert_array_equal(fleet.quat_enu_flu_xyzw[1], [0, 0, 0, 1])
+    np.testing.assert_array_equal(fleet.R_enu_flu[1], np.eye(3))
     assert len(fleet) == 3
 
 
@@ -65,3 +66,24 @@ def test_allocating_an_entity_twice_is_an_error():
     fleet.allocate(entity=1, body_id=5)
     with pytest.raises(ValueError):
         fleet.allocate(entity=1, body_id=6)
+
+
+def test_contiguous_rows_are_selected_by_a_slice_and_others_by_their_indices():
+    assert row_selector(np.array([3, 4, 5])) == slice(3, 6)
+    gappy = row_selector(np.array([0, 2, 3]))
+    np.testing.assert_array_equal(gappy, [0, 2, 3])
+    values = np.arange(10.0)
+    for rows in ([3, 4, 5], [0, 2, 3], [7]):
+        np.testing.assert_array_equal(values[row_selector(np.array(rows))], values[rows])
+    assert row_selector(np.empty(0, dtype=np.intp)).size == 0
+
+
+def test_the_fleet_selects_its_active_rows_with_a_slice_until_a_gap_opens():
+    fleet = FleetState(capacity=4)
+    for e in (1, 2, 3):
+        fleet.allocate(entity=e, body_id=e)
+    assert fleet.active == slice(0, 3)
+    fleet.free(2)
+    np.testing.assert_array_equal(fleet.active, [0, 2])
+    fleet.allocate(entity=4, body_id=4)
+    assert fleet.active == slice(0, 3)

@@ -50,33 +50,33 @@ class PhysicsClient:
         """Advance the physics by one fixed step."""
         p.stepSimulation(physicsClientId=self.id)
 
-    def read_states(self, body_ids: np.ndarray, pos_enu_m: np.ndarray, quat_xyzw: np.ndarray,
-                    vel_enu_m_s: np.ndarray, rate_enu_rad_s: np.ndarray) -> None:
-        """Fill the (M, 3)/(M, 4) output arrays with base pose and velocity of each body in ``body_ids``."""
+    def read_states(self, body_ids: np.ndarray) -> np.ndarray:
+        """Base pose and velocity of each body in ``body_ids``: (M, 13) rows of position [m] (3), quaternion
+        xyzw (4), linear velocity [m/s] (3) and angular velocity [rad/s] (3), world frame; two PyBullet
+        calls per body and one array for all of them."""
         cid = self.id
         get_pose = p.getBasePositionAndOrientation
         get_vel = p.getBaseVelocity
-        for k, bid in enumerate(body_ids.tolist()):
+        rows = []
+        for bid in body_ids.tolist():
             pos, quat = get_pose(bid, physicsClientId=cid)
             lin, ang = get_vel(bid, physicsClientId=cid)
-            pos_enu_m[k] = pos
-            quat_xyzw[k] = quat
-            vel_enu_m_s[k] = lin
-            rate_enu_rad_s[k] = ang
+            rows.append(pos + quat + lin + ang)
+        return np.array(rows, dtype=float).reshape(-1, 13)
 
     def apply_wrenches(self, body_ids: np.ndarray, pos_enu_m: np.ndarray, force_enu_n: np.ndarray,
                        torque_enu_n_m: np.ndarray) -> None:
-        """Apply a world-frame force at each body's centre of mass and a world-frame torque for one step."""
+        """Apply a world-frame force at each body's centre of mass and a world-frame torque for one step
+        (a zero force or torque is not sent)."""
         cid = self.id
         force = p.applyExternalForce
         torque = p.applyExternalTorque
-        for k, bid in enumerate(body_ids.tolist()):
-            f = force_enu_n[k]
+        world = p.WORLD_FRAME
+        for bid, f, at, t in zip(body_ids.tolist(), force_enu_n.tolist(), pos_enu_m.tolist(), torque_enu_n_m.tolist()):
             if f[0] != 0.0 or f[1] != 0.0 or f[2] != 0.0:
-                force(bid, -1, f.tolist(), pos_enu_m[k].tolist(), p.WORLD_FRAME, physicsClientId=cid)
-            t = torque_enu_n_m[k]
+                force(bid, -1, f, at, world, physicsClientId=cid)
             if t[0] != 0.0 or t[1] != 0.0 or t[2] != 0.0:
-                torque(bid, -1, t.tolist(), p.WORLD_FRAME, physicsClientId=cid)
+                torque(bid, -1, t, world, physicsClientId=cid)
 
     def attach_fixed(self, parent_body: int, child_body: int, max_force_n: float = 1e5) -> int:
         """Join ``child_body`` rigidly to ``parent_body`` at their current relative pose; return the constraint id."""

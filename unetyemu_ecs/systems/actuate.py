@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from ..components.aero import AeroDrag
 from ..control.aero import quadratic_drag_enu_n
-from ..frames import R_from_quat_xyzw
 from ..phases import Phase
 from ..world import StepContext
 from .fleet_system import FleetSystem, stack_params
@@ -14,7 +13,7 @@ class AeroDragSystem(FleetSystem):
     """Add quadratic drag (relative to the local wind) to every body with :class:`AeroDrag`.
 
     Phase: ACTUATE, after wind systems (order 50). Reads: fleet.vel_enu_m_s, wind_enu_m_s,
-    quat_enu_flu_xyzw. Writes: fleet.force_cmd_enu_n (adds).
+    R_enu_flu. Writes: fleet.force_cmd_enu_n (adds).
     """
 
     phase = Phase.ACTUATE
@@ -29,7 +28,6 @@ class AeroDragSystem(FleetSystem):
 
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
-        r = self.rows
+        r = self.sel
         v_rel = f.vel_enu_m_s[r] - f.wind_enu_m_s[r]
-        f.force_cmd_enu_n[r] += quadratic_drag_enu_n(v_rel, R_from_quat_xyzw(f.quat_enu_flu_xyzw[r]),
-                                                      self._cd, self._area, self._rho)
+        f.force_cmd_enu_n[r] += quadratic_drag_enu_n(v_rel, f.R_enu_flu[r], self._cd, self._area, self._rho)

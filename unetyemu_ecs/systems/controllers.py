@@ -40,7 +40,7 @@ from ..phases import Phase
 from ..plugins import ControllerPlugin
 from ..units import GRAVITY_M_S2
 from ..world import StepContext
-from .fleet_system import FleetSystem, stack_params, take_params
+from .fleet_system import FleetSystem, read_only, stack_params, take_params
 from .flight_state import MODE_ATTITUDE, MODE_AUTO, MODE_DISARMED, MODE_MANUAL, MODE_VELOCITY
 
 
@@ -84,8 +84,9 @@ class ControllerSystem(FleetSystem):
         if entered.any():
             self.reset_memory(ctx, self.rows[entered])
 
-    def read_memory(self, ctx: StepContext, rows: np.ndarray) -> dict[str, np.ndarray]:
-        return {name: getattr(ctx.fleet, arr)[rows] for name, arr in self._memory_names.items()}
+    def read_memory(self, ctx: StepContext, rows: slice | np.ndarray) -> dict[str, np.ndarray]:
+        """The law's memory of ``rows``: copies (a law may update them in place)."""
+        return {name: getattr(ctx.fleet, arr)[rows].copy() for name, arr in self._memory_names.items()}
 
     def write_memory(self, ctx: StepContext, rows: np.ndarray, memory: dict[str, np.ndarray]) -> None:
         for name, arr in self._memory_names.items():
@@ -136,10 +137,11 @@ class DroneControllerSystem(ControllerSystem):
             lim_descent_m_s=np.array([lim.lim_descent_m_s for lim in limits], dtype=float),
             lim_yaw_rate_rad_s=np.deg2rad([lim.lim_yaw_rate_deg_s for lim in limits]))
 
-    def state(self, ctx: StepContext, rows: np.ndarray) -> DroneState:
+    def state(self, ctx: StepContext, rows: slice | np.ndarray) -> DroneState:
+        """The drones' state for a law: read-only (for a slice of rows, views of the fleet arrays)."""
         f = ctx.fleet
-        return DroneState(f.pos_enu_m[rows], f.vel_enu_m_s[rows], f.acc_enu_m_s2[rows], f.quat_enu_flu_xyzw[rows],
-                          f.rate_flu_rad_s[rows])
+        return DroneState(*(read_only(a[rows]) for a in (f.pos_enu_m, f.vel_enu_m_s, f.acc_enu_m_s2,
+                                                          f.quat_enu_flu_xyzw, f.rate_flu_rad_s)))
 
     def subset(self, k: np.ndarray) -> tuple[Any, Any]:
         """Parameters and airframe of the local indices ``k`` (all of them: the stacked ones as they are)."""
@@ -157,15 +159,15 @@ class PositionControllerSystem(DroneControllerSystem):
 
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
-        mode = f.flight_mode[self.rows]
-        active = ((mode == MODE_AUTO) & f.has_route[self.rows]) | (mode == MODE_VELOCITY)
+        mode = f.flight_mode[self.sel]
+        active = ((mode == MODE_AUTO) & f.has_route[self.sel]) | (mode == MODE_VELOCITY)
         self.restart_on_entry(ctx, mode, active)
         k = np.flatnonzero(active)
         if k.size == 0:
             return
-        r = self.rows[k]
-        sp = PositionSetpoint(f.pos_sp_enu_m[r], f.vel_sp_enu_m_s[r], f.speed_limit_m_s[r], f.dist_to_go_m[r],
-                              f.yaw_sp_rad[r], f.yaw_rate_cmd_rad_s[r])
+        r = self.sel if k.size == self.rows.size else self.rows[k]
+        sp = PositionSetpoint(*(read_only(a[r]) for a in (f.pos_sp_enu_m, f.vel_sp_enu_m_s, f.speed_limit_m_s,
+                                                           f.dist_to_go_m, f.yaw_sp_rad, f.yaw_rate_cmd_rad_s)))
         params, airframe = self.subset(k)
         out: AttitudeSetpoint = self.call_law(ctx, sp, self.state(ctx, r), airframe, params, r)
         f.vz_sp_m_s[r] = out.vz_m_s
@@ -189,11 +191,11 @@ class AttitudeControllerSystem(DroneControllerSystem):
 
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
-        r = self.rows
+        r = self.sel
         mode = f.flight_mode[r]
         manual = mode == MODE_MANUAL
         if manual.any():
-            a, rm = self.airframe, r[manual]
+            a, rm = self.airframe, self.rows[manual]
             vz_sp, roll_sp, pitch_sp, yaw_rate_sp = manual_to_setpoints(
                 f.stick[rm], a.max_tilt_rad[manual], a.lim_climb_m_s[manual], a.lim_descent_m_s[manual],
                 a.lim_yaw_rate_rad_s[manual])
@@ -203,15 +205,20 @@ class AttitudeControllerSystem(DroneControllerSystem):
             f.yaw_rate_sp_rad_s[rm] = yaw_rate_sp
         attitude = mode == MODE_ATTITUDE
         if attitude.any():
-            f.vz_sp_m_s[r[attitude]] = f.vel_enu_m_s[r[attitude], 2]
-        sp = AttitudeSetpoint(f.vz_sp_m_s[r], f.roll_sp_rad[r], f.pitch_sp_rad[r], f.yaw_rate_sp_rad_s[r])
+            ra = self.rows[attitude]
+            f.vz_sp_m_s[ra] = f.vel_enu_m_s[ra, 2]
+        sp = AttitudeSetpoint(*(read_only(a[r]) for a in (f.vz_sp_m_s, f.roll_sp_rad, f.pitch_sp_rad,
+                                                           f.yaw_rate_sp_rad_s)))
         out: ThrustTorqueCommand = self.call_law(ctx, sp, self.state(ctx, r), self.airframe, self.params, r)
         armed = mode != MODE_DISARMED
         thrust = np.where(attitude, f.thrust_cmd_frac[r], out.thrust_frac) if attitude.any() else out.thrust_frac
-        f.thrust_frac_sp[r] = np.where(armed, thrust, 0.0)
-        f.torque_cmd[r] = np.where(armed[:, None], out.torque_cmd, 0.0)
-        if not armed.all():
-            self.reset_memory(ctx, r[~armed])
+        if armed.all():
+            f.thrust_frac_sp[r] = thrust
+            f.torque_cmd[r] = out.torque_cmd
+        else:
+            f.thrust_frac_sp[r] = np.where(armed, thrust, 0.0)
+            f.torque_cmd[r] = np.where(armed[:, None], out.torque_cmd, 0.0)
+            self.reset_memory(ctx, self.rows[~armed])
 
 
 class MixerSystem(DroneControllerSystem):
@@ -222,13 +229,14 @@ class MixerSystem(DroneControllerSystem):
 
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
-        r = self.rows
-        cmd = ThrustTorqueCommand(f.thrust_frac_sp[r], f.torque_cmd[r])
+        r = self.sel
+        cmd = ThrustTorqueCommand(read_only(f.thrust_frac_sp[r]), read_only(f.torque_cmd[r]))
         out = self.call_law(ctx, cmd, self.state(ctx, r), self.airframe, self.params, r)
-        f.motor_frac_cmd[r] = np.clip(finite_or_zero(out.motor_frac), 0.0, 1.0)
-        disarmed = f.flight_mode[r] == MODE_DISARMED
-        if disarmed.any() and self._memory_names:
-            self.reset_memory(ctx, r[disarmed])
+        f.motor_frac_cmd[r] = np.minimum(np.maximum(finite_or_zero(out.motor_frac), 0.0), 1.0)
+        if self._memory_names:
+            disarmed = f.flight_mode[r] == MODE_DISARMED
+            if disarmed.any():
+                self.reset_memory(ctx, self.rows[disarmed])
 
 
 def layer_system(layer: Layer) -> tuple[type[ControllerSystem], tuple[type, ...]]:

@@ -7,6 +7,8 @@ thrust each motor actually applied this step. A disarmed drone has zero thrust a
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..components.flight import EnergyModel
@@ -48,6 +50,7 @@ class EnergySystem(FleetSystem):
         self._cap_j = p.battery_wh * J_PER_WH
         self._low = p.low_battery_land_frac
         self._tau = p.remaining_time_tau_s
+        self._filter_dt_s, self._filter_gain = math.nan, np.zeros_like(self._tau)   # the filter's gain per step
         for k, (row, ent) in enumerate(zip(self.rows.tolist(), self.entities.tolist())):
             if ent not in self._initialised:       # a new drone: full (or initial) battery
                 f.energy_j[row] = p.initial_soc_frac[k] * self._cap_j[k]
@@ -59,18 +62,24 @@ class EnergySystem(FleetSystem):
 
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
-        r = self.rows
+        r = self.sel
+        dt = ctx.dt_s
         power = rotor_power_w(f.motor_thrust_n[r], self._rho, self._area, self._eta).sum(axis=1) + self._p0
         f.power_w[r] = power
-        a = 1.0 - np.exp(-ctx.dt_s / self._tau)
-        f.power_filt_w[r] += a * (power - f.power_filt_w[r])
-        charge = np.where(f.charging[r], f.charge_power_w[r], 0.0)
-        energy = np.clip(f.energy_j[r] - power * ctx.dt_s + charge * ctx.dt_s, 0.0, self._cap_j)
+        if dt != self._filter_dt_s:
+            self._filter_dt_s, self._filter_gain = dt, 1.0 - np.exp(-dt / self._tau)
+        f.power_filt_w[r] += self._filter_gain * (power - f.power_filt_w[r])
+        charging = f.charging[r]
+        energy = f.energy_j[r] - power * dt
+        if charging.any():
+            energy += np.where(charging, f.charge_power_w[r], 0.0) * dt
+        energy = np.minimum(np.maximum(energy, 0.0), self._cap_j)
         f.energy_j[r] = energy
-        f.energy_used_j[r] += power * ctx.dt_s
-        f.soc_frac[r] = energy / self._cap_j
+        f.energy_used_j[r] += power * dt
+        soc = energy / self._cap_j
+        f.soc_frac[r] = soc
         f.remaining_time_s[r] = energy / np.maximum(f.power_filt_w[r], 1e-9)
-        f.low_battery[r] = f.soc_frac[r] < self._low
+        f.low_battery[r] = soc < self._low
         empty = energy <= 0.0
         if empty.any():
-            f.motors_enabled[r[empty]] = False
+            f.motors_enabled[self.rows[empty]] = False

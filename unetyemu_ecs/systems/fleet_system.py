@@ -22,6 +22,7 @@ import esper
 import numpy as np
 
 from ..components.body import FleetSlot
+from ..fleet import row_selector
 from ..world import StepContext
 
 
@@ -33,6 +34,8 @@ class FleetSystem(esper.Processor):
     :meth:`gather` to stack per-row parameters from the gathered components. After a gather:
 
     - ``rows`` : (M,) intp fleet rows, ascending (a deterministic order);
+    - ``sel`` : the cheapest index of those rows (:func:`~unetyemu_ecs.fleet.row_selector`: a slice when
+      they are contiguous; reads through it are views), for reading and writing whole-fleet arrays;
     - ``entities`` : (M,) int64 esper entity ids of those rows;
     - ``components`` : one list of M components per type in ``requires``, in row order.
 
@@ -45,6 +48,7 @@ class FleetSystem(esper.Processor):
         self._query: Any = None
         self._version = -1
         self.rows = np.empty(0, dtype=np.intp)
+        self.sel: slice | np.ndarray = self.rows
         self.entities = np.empty(0, dtype=np.int64)
         self.components: tuple[list[Any], ...] = tuple([] for _ in self.requires)
 
@@ -56,6 +60,7 @@ class FleetSystem(esper.Processor):
             self._version = ctx.fleet.version
             ordered = sorted(found, key=lambda ec: ec[1][0].row)
             self.rows = np.array([comps[0].row for _, comps in ordered], dtype=np.intp)
+            self.sel = row_selector(self.rows)
             self.entities = np.array([ent for ent, _ in ordered], dtype=np.int64)
             self.components = tuple([comps[k + 1] for _, comps in ordered] for k in range(len(self.requires)))
             self.gather(ctx)
@@ -73,6 +78,12 @@ class FleetSystem(esper.Processor):
         raise NotImplementedError(f"{type(self).__name__} must implement update(ctx)")
 
 
+def read_only(values: np.ndarray) -> np.ndarray:
+    """``values`` marked read-only (what a law receives of the fleet: a view must not be written through)."""
+    values.flags.writeable = False
+    return values
+
+
 def stack_params(items: list[Any], cls: type) -> Any:
     """Stack M parameter dataclasses into one ``cls`` whose fields are (M, ...) float arrays (for vectorised laws)."""
     names = [f.name for f in dataclasses.fields(cls)]
@@ -87,4 +98,4 @@ def take_params(stacked: Any, idx: np.ndarray) -> Any:
                                            for f in dataclasses.fields(stacked)})
 
 
-__all__ = ["FleetSystem", "stack_params", "take_params"]
+__all__ = ["FleetSystem", "read_only", "stack_params", "take_params"]

@@ -73,7 +73,7 @@ class RouteFollowingSystem(FleetSystem):
 
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
-        rows = self.rows
+        rows = self.sel
         changed = np.flatnonzero(f.route_stamp[rows] != self._stamps)
         if changed.size:
             self._load_routes(f, changed)
@@ -88,7 +88,7 @@ class RouteFollowingSystem(FleetSystem):
     def _follow_routes(self, ctx: StepContext, k: np.ndarray) -> None:
         """AUTO rows (local indices ``k``): pure pursuit on the route."""
         f = ctx.fleet
-        r = self.rows[k]
+        r = self.sel if k.size == self.rows.size else self.rows[k]
         res = pure_pursuit(f.pos_enu_m[r], self._route[k], self._n_points[k], f.route_segment[r], self._speeds[k],
                            self._lead[k], self._zone[k], (self._seg_lengths[k], self._cum_lengths[k]))
         f.route_segment[r] = res.segment

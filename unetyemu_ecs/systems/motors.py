@@ -17,7 +17,6 @@ import numpy as np
 from ..components.flight import QuadrotorMotors
 from ..control.mixer import motor_positions_flu_m
 from ..control.rotor_wrench import rotor_torque_matrix_flu, rotor_wrench_enu
-from ..frames import R_from_quat_xyzw
 from ..phases import Phase
 from ..world import StepContext
 from .fleet_system import FleetSystem
@@ -28,7 +27,7 @@ class MotorSystem(FleetSystem):
     """Lag and apply the mixer's motor thrusts for every quadrotor in one pass.
 
     Phase: ACTUATE (order 20, after the mixer layer). Reads: fleet.motor_frac_cmd, flight_mode,
-    motors_enabled, attitude. Writes: fleet.motor_thrust_cmd_n, motor_thrust_n; adds the rotors'
+    motors_enabled, R_enu_flu. Writes: fleet.motor_thrust_cmd_n, motor_thrust_n; adds the rotors'
     resultant force and torque to force_cmd_enu_n and torque_cmd_enu_n_m (applied in PHYSICS).
     """
 
@@ -47,13 +46,13 @@ class MotorSystem(FleetSystem):
 
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
-        r = self.rows
+        r = self.sel
         live = (f.flight_mode[r] != MODE_DISARMED) & f.motors_enabled[r]
         cmd = f.motor_frac_cmd[r] * (self._f_max * live)[:, None]
         f.motor_thrust_cmd_n[r] = cmd
-        thrust = f.motor_thrust_n[r] + self._alpha[:, None] * (cmd - f.motor_thrust_n[r])
-        thrust = np.where(live[:, None], thrust, 0.0)        # a disabled motor stops at once
+        lagged = f.motor_thrust_n[r]
+        thrust = np.where(live[:, None], lagged + self._alpha[:, None] * (cmd - lagged), 0.0)  # a disabled motor stops at once
         f.motor_thrust_n[r] = thrust
-        force, torque = rotor_wrench_enu(thrust, R_from_quat_xyzw(f.quat_enu_flu_xyzw[r]), self._torque_matrix)
+        force, torque = rotor_wrench_enu(thrust, f.R_enu_flu[r], self._torque_matrix)
         f.force_cmd_enu_n[r] += force
         f.torque_cmd_enu_n_m[r] += torque

@@ -5,6 +5,7 @@ from __future__ import annotations
 import esper
 import numpy as np
 
+from ..fleet import row_selector
 from ..frames import R_from_quat_xyzw
 from ..phases import Phase
 from ..world import StepContext
@@ -14,7 +15,7 @@ class StateReadbackSystem(esper.Processor):
     """Copy base pose/velocity of all active rows from PyBullet; derive body rates and acceleration.
 
     Phase: STATE. Reads: PyBullet. Writes: fleet.pos_enu_m, quat_enu_flu_xyzw, vel_enu_m_s,
-    rate_enu_rad_s, rate_flu_rad_s, acc_enu_m_s2 (velocity difference over the step), odometer_m.
+    rate_enu_rad_s, rate_flu_rad_s, R_enu_flu, acc_enu_m_s2 (velocity difference over the step), odometer_m.
 
     Not a :class:`~unetyemu_ecs.systems.fleet_system.FleetSystem`: its rows are every body, whatever
     its components, and it needs nothing but their body ids, which change only when rows are
@@ -27,6 +28,7 @@ class StateReadbackSystem(esper.Processor):
     def __init__(self) -> None:
         self._seen_version = -1
         self._rows = np.empty(0, dtype=np.intp)
+        self._sel: slice | np.ndarray = self._rows
         self._bodies = np.empty(0, dtype=np.int64)
 
     def prime(self, ctx: StepContext) -> None:
@@ -40,26 +42,25 @@ class StateReadbackSystem(esper.Processor):
         f = ctx.fleet
         if f.version != self._seen_version:
             self._rows = f.rows.copy()
+            self._sel = row_selector(self._rows)
             self._bodies = f.body_id[self._rows].copy()
             self._seen_version = f.version
             first = True
-        r = self._rows
-        m = r.size
-        if m == 0:
+        r = self._sel
+        if self._rows.size == 0:
             return
-        pos = np.empty((m, 3))
-        quat = np.empty((m, 4))
-        vel = np.empty((m, 3))
-        rate = np.empty((m, 3))
-        ctx.physics.read_states(self._bodies, pos, quat, vel, rate)
+        state = ctx.physics.read_states(self._bodies)                # (M, 13)
+        pos, quat, vel, rate = state[:, 0:3], state[:, 3:7], state[:, 7:10], state[:, 10:13]
         if first:
             f.acc_enu_m_s2[r] = 0.0
         else:
             f.acc_enu_m_s2[r] = (vel - f.vel_enu_m_s[r]) / ctx.dt_s
-            f.odometer_m[r] += np.linalg.norm(pos - f.pos_enu_m[r], axis=1)
+            step = pos - f.pos_enu_m[r]
+            f.odometer_m[r] += np.sqrt(np.einsum("mi,mi->m", step, step))
         f.pos_enu_m[r] = pos
         f.quat_enu_flu_xyzw[r] = quat
         f.vel_enu_m_s[r] = vel
         f.rate_enu_rad_s[r] = rate
         R_enu_flu = R_from_quat_xyzw(quat)                     # (M, 3, 3)
+        f.R_enu_flu[r] = R_enu_flu
         f.rate_flu_rad_s[r] = np.einsum("mji,mj->mi", R_enu_flu, rate)   # R^T @ w_enu
