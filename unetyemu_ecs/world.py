@@ -63,6 +63,7 @@ class SimServices:
     gravity_enu_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.81)
     origin: GeodeticOrigin | None = None
     raycast: Any = None          # the RaycastWorld of LiDARs and cameras, built by the first that needs it
+    camera_casts: dict[Any, Any] = field(default_factory=dict)   # this step's camera frames, shared (sensors.camera)
     _mesh: Any = None
 
     def scene_mesh(self) -> Any:

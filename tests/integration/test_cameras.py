@@ -98,3 +98,32 @@ def test_image_and_camera_info_round_trip_through_cdr_with_design_names():
         assert np.array_equal(read_image(back), read_image(img.msg))
         k = deserialize(serialize(info.msg), "sensor_msgs/msg/CameraInfo").k
         assert k[0] == pytest.approx(160.0 / np.tan(np.deg2rad(35.0))) and k[2] == 159.5 and k[5] == 119.5
+
+
+def test_an_rgb_and_a_depth_camera_with_the_same_view_come_from_one_cast_and_agree_on_every_pixel():
+    # GIVEN a car with an RGB-D camera (RGB and depth with the same mount and image, looking up 30 deg over
+    # the wall) and a second car with a depth camera only
+    view = "width: 64, height: 48, mount_xyz_m: [2.3, 0.0, -0.3], mount_rpy_deg: [0.0, -30.0, 0.0]"
+    cams = f"camera: {{{view}}}, depth_camera: {{{view}}}"
+    with Simulation(load_world_text(world(car("c1", cams) + car("c2", "depth_camera: {width: 64, height: 48}", y=8.0)
+                                          + car("target", x=14.0, yaw_deg=90.0)))) as sim:
+        sim.step(1)
+        casts: list[int] = []
+        real_cast = sim.services.raycast.cast
+
+        def counted_cast(origins, *args, **kwargs):
+            casts.append(len(origins))
+            return real_cast(origins, *args, **kwargs)
+
+        sim.services.raycast.cast = counted_cast
+        # WHEN the next frames are due
+        while not casts:
+            sim.step()
+        # THEN the three frames cost two casts of one image each: the RGB batch (c1's view) and the depth
+        # batch, which holds only c2's view (c1's depth frame takes the RGB frame's hits)
+        assert casts == [64 * 48, 64 * 48]
+        rgb = read_image(sim.sensor("c1", "camera")).astype(int)
+        depth = read_image(sim.sensor("c1", "depth_camera"))
+        # AND the sky (no hit within range) is the same set of pixels in both images
+        sky = (np.abs(rgb - np.round(np.array([0.62, 0.76, 0.92]) * 255)).max(axis=2) == 0)
+        assert sky.any() and np.array_equal(sky, np.isinf(depth))

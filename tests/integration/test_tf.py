@@ -62,3 +62,20 @@ def test_tf_runs_at_50_hz_and_lidar_points_carried_through_it_land_on_the_walls(
         p = read_points(cloud)
         pts = np.c_[p["x"], p["y"], p["z"], np.ones(len(p))] @ map_from_lidar.T
         assert len(pts) > 3000 and distance_to_room(pts[:, :3]).max() < 0.01
+
+
+def test_a_tf_message_read_later_holds_the_poses_of_its_own_stamp():
+    # GIVEN a drone climbing (so its pose changes every step)
+    with Simulation(load_world_text(world(DRONE))) as sim:
+        sim.set_target("d1", 0.0, 0.0, 4.0)
+        sim.run(duration=1.0)
+        while "tf" not in {s.sensor for s in sim.services.sensors.this_step}:
+            sim.step()
+        pose_then = sim.position_enu_m("d1").copy()
+        # WHEN the message is first read two steps later (the loop only copied the poses)
+        sim.step(2)
+        tf, _ = sim.transforms()
+        # THEN it carries the pose at its stamp, not the pose now
+        t = tf.transforms[0].transform.translation
+        assert np.allclose([t.x, t.y, t.z], pose_then, atol=1e-12)
+        assert not np.allclose(pose_then, sim.position_enu_m("d1"), atol=1e-4)

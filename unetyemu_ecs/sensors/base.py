@@ -16,7 +16,7 @@ from __future__ import annotations
 import re
 import zlib
 from dataclasses import dataclass, field
-from typing import Annotated, Any, ClassVar
+from typing import Annotated, Any, Callable, ClassVar
 
 import numpy as np
 
@@ -70,17 +70,34 @@ class SensorSpec:
         return np.asarray(quat_xyzw_from_euler_rpy(r, p, y), dtype=float).reshape(4)
 
 
-@dataclass(frozen=True)
 class SensorSample:
     """One measurement: when (sim time [s]), which vehicle and sensor key, the topic, the message,
-    and whether the ROS 2 bridge publishes it."""
+    and whether the ROS 2 bridge publishes it.
 
-    time_s: float
-    vehicle: str
-    sensor: str
-    topic: str
-    msg: Any
-    ros2: bool = True
+    A sample may be built from ``build`` (a function of no arguments returning the message) instead of
+    ``msg``: the message is then made the first time someone reads ``msg`` (a transport on its own
+    thread, or :meth:`~unetyemu_ecs.app.Simulation.transforms`), so that a message nobody reads costs
+    the loop nothing. ``build`` must depend only on what it captured (copies, not live fleet arrays).
+    """
+
+    __slots__ = ("time_s", "vehicle", "sensor", "topic", "ros2", "_msg", "_build")
+
+    def __init__(self, time_s: float, vehicle: str, sensor: str, topic: str, msg: Any = None, ros2: bool = True,
+                 *, build: Callable[[], Any] | None = None) -> None:
+        self.time_s, self.vehicle, self.sensor, self.topic, self.ros2 = time_s, vehicle, sensor, topic, ros2
+        self._msg, self._build = msg, build
+
+    @property
+    def msg(self) -> Any:
+        build = self._build
+        if build is not None:             # two readers at once may both build it: the same message
+            self._msg = build()
+            self._build = None
+        return self._msg
+
+    def __repr__(self) -> str:
+        return (f"SensorSample(time_s={self.time_s!r}, vehicle={self.vehicle!r}, sensor={self.sensor!r}, "
+                f"topic={self.topic!r}, ros2={self.ros2!r})")
 
 
 @dataclass

@@ -115,6 +115,13 @@ def read_image(msg: Any) -> np.ndarray:
     raise ValueError(f"unsupported encoding {msg.encoding!r}")
 
 
+def view_key(s: MountedSensor) -> tuple[Any, ...]:
+    """What fixes a camera's rays and their hits: its vehicle, mount, image size, field of view and range."""
+    spec = s.spec
+    return (s.entity, tuple(spec.mount_xyz_m), tuple(spec.mount_rpy_deg), spec.width, spec.height, spec.hfov_deg,
+            spec.max_range_m)
+
+
 class _CameraSystem(RaycastSensorSystem):
     """One ray per pixel for every camera of this kind that is due (cast in one batch)."""
 
@@ -137,11 +144,26 @@ class _CameraSystem(RaycastSensorSystem):
                   for _, (slot, look) in esper.get_components(FleetSlot, Appearance)}
         return np.array([by_row.get(int(r), np.full(3, 0.5)) for r in self._body_rows]).reshape(-1, 3)
 
-    def cast_frames(self, ctx: StepContext, due: list[MountedSensor]) -> list[tuple[Any, slice, np.ndarray]]:
-        """Cast every due camera in one batch; per camera: (hits, its slice of them, its world directions)."""
-        hits, dirs_all, slices = self.cast_due(ctx, due, [(self._rays[s.entity][0], self._rays[s.entity][2])
-                                                          for s in due])
-        return [(hits, sl, dirs_all[sl]) for sl in slices]
+    def cast_frames(self, ctx: StepContext, due: list[MountedSensor], time_s: float
+                    ) -> list[tuple[Any, slice, np.ndarray]]:
+        """Cast every due camera in one batch; per camera: (hits, its slice of them, its world directions).
+
+        A camera whose view another camera of its vehicle cast this very step (an RGB and a depth camera
+        with the same mount, size, field of view and range: an RGB-D camera) takes that cast's hits, so
+        its colour and depth come from one cast and agree pixel for pixel."""
+        shared = ctx.services.camera_casts
+        if shared.get("time_s") != time_s:
+            shared.clear()
+            shared["time_s"] = time_s
+        views = [view_key(s) for s in due]
+        todo = [k for k, view in enumerate(views) if view not in shared]
+        if todo:
+            hits, dirs_all, slices = self.cast_due(ctx, [due[k] for k in todo],
+                                                   [(self._rays[due[k].entity][0], self._rays[due[k].entity][2])
+                                                    for k in todo])
+            for k, sl in zip(todo, slices):
+                shared[views[k]] = (hits, sl, dirs_all[sl])
+        return [shared[view] for view in views]
 
     def publish_info(self, ctx: StepContext, s: MountedSensor, time_s: float) -> None:
         """The CameraInfo of a frame, on ``<image topic's namespace>/camera_info`` (image_transport)."""
@@ -167,7 +189,7 @@ class RgbCameraSystem(_CameraSystem):
     topic_suffix = "camera/image_raw"
 
     def measure(self, ctx: StepContext, due: list[MountedSensor], time_s: float) -> None:
-        for s, (hits, sl, dirs_w) in zip(due, self.cast_frames(ctx, due)):
+        for s, (hits, sl, dirs_w) in zip(due, self.cast_frames(ctx, due, time_s)):
             spec: RgbCamera = s.spec
             cls = hits.cls[sl]
             rgb = _CLASS_RGB[np.clip(cls, 0, 255)]
@@ -194,7 +216,7 @@ class DepthCameraSystem(_CameraSystem):
     topic_suffix = "depth/image_raw"
 
     def measure(self, ctx: StepContext, due: list[MountedSensor], time_s: float) -> None:
-        for s, (hits, sl, _) in zip(due, self.cast_frames(ctx, due)):
+        for s, (hits, sl, _) in zip(due, self.cast_frames(ctx, due, time_s)):
             spec: DepthCamera = s.spec
             _, z, _ = self._rays[s.entity]
             t = hits.t[sl]

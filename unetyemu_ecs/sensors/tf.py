@@ -6,7 +6,8 @@
   ground truth, it does not drift), ``<v>/base_link -> <v>/<link>`` for every sensor's mount, and
   ``<link> -> <optical frame>`` for cameras (z forward, x right, y down);
 - ``/tf`` (every ``1 / TF_HZ`` s of sim time): ``<v>/odom -> <v>/base_link`` of every vehicle, in one
-  message.
+  message. The loop only copies the poses; the message is built when it is first read (by a
+  transport, on its own thread, or by ``Simulation.transforms``), so nobody listening costs nothing.
 
 The static tree follows the world: a vehicle spawned or removed, or a sensor added to or removed
 from a vehicle after spawn, sends ``/tf_static`` again on the next step.
@@ -17,6 +18,7 @@ The messages go to the sensor outputs under vehicle ``""`` and keys ``tf`` / ``t
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Any
 
 import esper
@@ -40,6 +42,13 @@ def _transform(time_s: float, parent: str, child: str, xyz: np.ndarray, q_xyzw: 
              transform=Transform(translation=vector3(xyz), rotation=quaternion(q_xyzw)))
 
 
+def tf_message(time_s: float, frames: tuple[tuple[str, str], ...], xyz: np.ndarray, q_xyzw: np.ndarray) -> Any:
+    """A TFMessage of ``parent -> child`` (``frames``) transforms with translations (N, 3) [m] and rotations
+    (N, 4) xyzw, all stamped ``time_s``."""
+    return msg_type("tf2_msgs/msg/TFMessage")(transforms=[
+        _transform(time_s, parent, child, t, q) for (parent, child), t, q in zip(frames, xyz, q_xyzw)])
+
+
 class TransformSystem(FleetSystem):
     """Publishes /tf_static (at the first step, and again whenever the tree changes) and /tf at TF_HZ
     for every vehicle. Phase: OUTPUTS. Always present."""
@@ -53,6 +62,8 @@ class TransformSystem(FleetSystem):
         self._static_sent = False
         self._next_s = 0.0
         self._vehicles: list[tuple[int, str]] = []
+        self._vehicle_rows = np.empty(0, dtype=np.intp)
+        self._frames: tuple[tuple[str, str], ...] = ()        # (odom, base_link) of each vehicle
         self._static: list[tuple[str, str, tuple[float, ...], tuple[float, ...]]] = []  # parent, child, xyz, q_xyzw
 
     def gather(self, ctx: StepContext) -> None:
@@ -60,6 +71,8 @@ class TransformSystem(FleetSystem):
                                                                           self.components[0])
                     if ident.kind != "package"]
         self._vehicles = [(row, name) for row, _, name in vehicles]
+        self._vehicle_rows = np.array([row for row, _ in self._vehicles], dtype=np.intp)
+        self._frames = tuple((f"{name}/odom", f"{name}/base_link") for _, name in self._vehicles)
         static = self._static_tree(vehicles)
         if static != self._static:                     # new vehicles or sensors: send the static tree again
             self._static = static
@@ -77,9 +90,9 @@ class TransformSystem(FleetSystem):
             self._static_sent = True
         if time_s + 1e-9 >= self._next_s:
             self._next_s += (np.floor((time_s + 1e-9 - self._next_s) * TF_HZ) + 1) / TF_HZ
-            tfs = [_transform(time_s, f"{name}/odom", f"{name}/base_link", f.pos_enu_m[row], f.quat_enu_flu_xyzw[row])
-                   for row, name in self._vehicles]
-            ctx.services.sensors.put(SensorSample(time_s, "", "tf", "/tf", TFMessage(transforms=tfs)))
+            rows = self._vehicle_rows
+            ctx.services.sensors.put(SensorSample(time_s, "", "tf", "/tf", build=partial(
+                tf_message, time_s, self._frames, f.pos_enu_m.take(rows, axis=0), f.quat_enu_flu_xyzw.take(rows, axis=0))))
 
     @staticmethod
     def _static_tree(vehicles: list[tuple[int, int, str]]) -> list[tuple[str, str, tuple[float, ...], tuple[float, ...]]]:
@@ -101,4 +114,4 @@ class TransformSystem(FleetSystem):
         return out
 
 
-__all__ = ["TF_HZ", "TransformSystem"]
+__all__ = ["TF_HZ", "TransformSystem", "tf_message"]
