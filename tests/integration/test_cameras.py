@@ -109,16 +109,18 @@ def test_an_rgb_and_a_depth_camera_with_the_same_view_come_from_one_cast_and_agr
                                           + car("target", x=14.0, yaw_deg=90.0)))) as sim:
         sim.step(1)
         casts: list[int] = []
-        real_cast = sim.services.raycast.cast
+        real_cast = sim.services.raycast.cast_prepared
 
-        def counted_cast(origins, *args, **kwargs):
-            casts.append(len(origins))
-            return real_cast(origins, *args, **kwargs)
+        def counted_cast(rays, *args, **kwargs):
+            casts.append(len(rays))
+            return real_cast(rays, *args, **kwargs)
 
-        sim.services.raycast.cast = counted_cast
-        # WHEN the next frames are due
-        while not casts:
+        sim.services.raycast.cast_prepared = counted_cast
+        # WHEN the next frames are due (10 Hz: within 24 steps)
+        for _ in range(24):
             sim.step()
+            if casts:
+                break
         # THEN the three frames cost two casts of one image each: the RGB batch (c1's view) and the depth
         # batch, which holds only c2's view (c1's depth frame takes the RGB frame's hits)
         assert casts == [64 * 48, 64 * 48]

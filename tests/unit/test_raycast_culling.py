@@ -62,3 +62,33 @@ def test_the_own_vehicle_is_left_out_and_a_sensor_inside_another_bodys_sphere_ke
     assert moving_body_candidates(np.zeros(3), dirs, 5.0, centers, radii, exclude=0).size == 0
     # a sensor within body 1's bounding sphere (not its own): every ray
     assert moving_body_candidates(np.array([10.1, 0.0, 0.0]), dirs, 30.0, centers, radii, exclude=0).tolist() == [0, 1, 2]
+
+
+def test_binned_candidates_of_many_sensors_sharing_a_pattern_are_exactly_the_per_sensor_candidates(rng):
+    # GIVEN 12 LiDARs (360 x 16 pattern) at random attitudes among 60 drone-sized bodies, some very close,
+    # one sensor inside a body's sphere and each sensor's own body in the list
+    from unetyemu_ecs.frames import R_from_quat_xyzw
+    from unetyemu_ecs.sensors.lidar import LidarSensor, ray_directions_sensor
+    from unetyemu_ecs.sensors.raycast import direction_bins, moving_body_candidates_binned
+
+    pattern, _ = ray_directions_sensor(LidarSensor())
+    n, n_bodies = 12, 60
+    origins = np.column_stack([rng.uniform(-40, 40, n), rng.uniform(-40, 40, n), rng.uniform(2, 20, n)])
+    R = R_from_quat_xyzw(quat_normalize_xyzw(rng.normal(size=(n, 4))))
+    centers = np.vstack([origins, np.column_stack([rng.uniform(-60, 60, n_bodies - n), rng.uniform(-60, 60, n_bodies - n),
+                                                  rng.uniform(1, 25, n_bodies - n)])])
+    centers[n] = origins[3] + [0.2, 0.0, 0.1]                               # sensor 3 sits inside this body's sphere
+    centers[n + 1] = origins[5] + [1.5, 0.3, -0.2]                          # a body right next to sensor 5
+    radii = np.full(n_bodies, np.linalg.norm([0.25, 0.25, 0.08]) + EXIT_MARGIN_M)
+    max_range = np.full(n, 30.0)
+    own = np.arange(n)                                                      # sensor k rides body k
+    dirs_world = np.concatenate([pattern @ R[k].T for k in range(n)])
+    # WHEN the candidates are found with the direction bins for all sensors at once, and sensor by sensor
+    binned = moving_body_candidates_binned(origins, R, dirs_world, direction_bins(pattern), max_range, centers,
+                                           radii, own)
+    k = len(pattern)
+    each = np.concatenate([j * k + moving_body_candidates(origins[j], dirs_world[j * k:(j + 1) * k], 30.0, centers,
+                                                          radii, exclude=j) for j in range(n)])
+    # THEN both are the same rays (the bins only skip rays that cannot meet a body)
+    np.testing.assert_array_equal(binned, np.sort(each))
+    assert k * 1 <= len(binned) < 0.3 * len(dirs_world)                     # sensor 3 keeps all its rays; most are culled

@@ -16,6 +16,7 @@ angle, in [0, 1].
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cache
 from typing import Annotated, Any, ClassVar
 
 import numpy as np
@@ -76,14 +77,24 @@ def pointcloud2(points_sensor_m: np.ndarray, intensity: np.ndarray, rings: np.nd
     arr = np.zeros(len(points_sensor_m), dtype=POINT_DTYPE)
     arr["x"], arr["y"], arr["z"] = points_sensor_m[:, 0], points_sensor_m[:, 1], points_sensor_m[:, 2]
     arr["intensity"], arr["ring"] = intensity, rings
+    return pointcloud2_of_points(arr, time_s, frame_id)
+
+
+@cache
+def _point_fields() -> tuple[Any, ...]:
+    """The PointFields of POINT_DTYPE (made once; messages share these immutable field descriptions)."""
     PointField = msg_type("sensor_msgs/msg/PointField")
-    fields = [PointField(name=n, offset=o, datatype=FLOAT32, count=1)
-              for n, o in (("x", 0), ("y", 4), ("z", 8), ("intensity", 12))]
-    fields.append(PointField(name="ring", offset=16, datatype=UINT16, count=1))
+    return (*(PointField(name=n, offset=o, datatype=FLOAT32, count=1)
+              for n, o in (("x", 0), ("y", 4), ("z", 8), ("intensity", 12))),
+            PointField(name="ring", offset=16, datatype=UINT16, count=1))
+
+
+def pointcloud2_of_points(points: np.ndarray, time_s: float, frame_id: str) -> Any:
+    """A PointCloud2 whose data are the bytes of ``points`` (a contiguous POINT_DTYPE array, not copied)."""
     return msg_type("sensor_msgs/msg/PointCloud2")(
-        header=header(time_s, frame_id), height=1, width=len(arr), fields=fields, is_bigendian=False,
-        point_step=POINT_DTYPE.itemsize, row_step=POINT_DTYPE.itemsize * len(arr),
-        data=arr.view(np.uint8), is_dense=True)          # the points' bytes, not a copy of them
+        header=header(time_s, frame_id), height=1, width=len(points), fields=list(_point_fields()), is_bigendian=False,
+        point_step=POINT_DTYPE.itemsize, row_step=POINT_DTYPE.itemsize * len(points),
+        data=points.view(np.uint8), is_dense=True)          # the points' bytes, not a copy of them
 
 
 def read_points(msg: Any) -> np.ndarray:
@@ -108,23 +119,49 @@ class LidarSystem(RaycastSensorSystem):
             table[int(cls)] = refl
         table[MOVING_BODY] = BODY_REFLECTIVITY
         self._reflectivity = table
+        self._ray_limits: dict[tuple[int, ...], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
     def gather(self, ctx: StepContext) -> None:
         super().gather(ctx)
         self._patterns = {}
+        self._ray_limits = {}
         for s in self.sensors:
             dirs_s, rings = ray_directions_sensor(s.spec)
             self._patterns[s.entity] = (dirs_s, rings, self.own_exit_m(s, dirs_s))
 
     def measure(self, ctx: StepContext, due: list[MountedSensor], time_s: float) -> None:
-        hits, dirs_all, slices = self.cast_due(ctx, due, [(self._patterns[s.entity][0], self._patterns[s.entity][2])
-                                                          for s in due])
-        intensity_all = self._reflectivity[np.clip(hits.cls, 0, 255)] * np.abs(np.einsum("ij,ij->i", hits.normal, dirs_all))
-        for s, sl in zip(due, slices):
-            dirs_s, rings, _ = self._patterns[s.entity]
-            rng = hits.t[sl]
-            keep = np.isfinite(rng) & (rng <= s.spec.max_range_m) & (rng >= s.spec.min_range_m)
-            pts = dirs_s[keep] * rng[keep, None]
-            self.publish(ctx, s, time_s, pointcloud2(pts, intensity_all[sl][keep], rings[keep], time_s, s.frame_id))
+        rays = [(self._patterns[s.entity][0], self._patterns[s.entity][2]) for s in due]
+        hits, _, slices = self.cast_due(ctx, due, rays)
+        plan = self._plan(due, rays)
+        ring_bits, min_m, max_m = self._per_ray(due)
+        t = hits.t
+        kept = (t <= max_m) & (t >= min_m)                      # a miss (inf) is never kept
+        # every sensor's points in one array, in sensor order (each cloud is a slice of it), written by
+        # columns from the kept rays (np.compress of contiguous rows: the cheapest selection)
+        cloud = np.empty(int(np.count_nonzero(kept)), dtype=POINT_DTYPE)
+        columns = cloud.view(np.float32).reshape(-1, 5)           # x, y, z, intensity, ring (+ padding) bits
+        np.multiply(np.compress(kept, plan.dirs_sensor, axis=0), np.compress(kept, t)[:, None], out=columns[:, :3])
+        cos_incidence = np.einsum("ij,ij->i", np.compress(kept, hits.normal, axis=0),
+                                  np.compress(kept, plan.rays, axis=0)[:, 3:])
+        np.multiply(self._reflectivity[np.compress(kept, hits.cls)], np.abs(cos_incidence), out=columns[:, 3])
+        columns[:, 4] = np.compress(kept, ring_bits)
+        ends = np.cumsum([np.count_nonzero(kept[sl]) for sl in slices]).tolist()
+        for s, a, b in zip(due, [0, *ends[:-1]], ends):
+            self.publish(ctx, s, time_s, pointcloud2_of_points(cloud[a:b], time_s, s.frame_id))
 
-__all__ = ["LidarSensor", "LidarSystem", "pointcloud2", "ray_directions_sensor", "read_points"]
+    def _per_ray(self, due: list[MountedSensor]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Of every ray of ``due`` cast together: its ring as the bits of the point's last float32 column
+        (uint16 ring, 2 bytes of zero padding, little-endian) and its kept range [min, max] (float32, m)."""
+        key = tuple(s.entity for s in due)
+        found = self._ray_limits.get(key)
+        if found is None:
+            sizes = [len(self._patterns[s.entity][1]) for s in due]
+            rings = np.concatenate([self._patterns[s.entity][1] for s in due]).astype("<u4")
+            found = (rings.view("<f4"),
+                     np.repeat(np.array([s.spec.min_range_m for s in due], dtype=np.float32), sizes),
+                     np.repeat(np.array([s.spec.max_range_m for s in due], dtype=np.float32), sizes))
+            self._ray_limits[key] = found
+        return found
+
+
+__all__ = ["LidarSensor", "LidarSystem", "pointcloud2", "pointcloud2_of_points", "ray_directions_sensor", "read_points"]

@@ -99,6 +99,84 @@ def moving_body_candidates(origin_m: np.ndarray, dirs_world: np.ndarray, max_ran
     return np.flatnonzero((along >= np.sqrt(dist ** 2 - r ** 2)).any(axis=1))
 
 
+@dataclass(frozen=True)
+class DirectionBins:
+    """A fixed ray pattern (sensor frame) cut into cones: the rays of bin ``b`` are
+    ``order[starts[b]:starts[b + 1]]``, all within ``half_angle_rad[b]`` of the unit ``axis[b]``."""
+
+    order: np.ndarray
+    starts: np.ndarray
+    axis: np.ndarray
+    half_angle_rad: np.ndarray
+
+
+def direction_bins(dirs_sensor: np.ndarray, n_azimuth: int = 36, n_elevation: int = 6) -> DirectionBins:
+    """Cut unit directions (K, 3) into azimuth x elevation cells, each with the cone that holds its rays."""
+    d = np.asarray(dirs_sensor, dtype=float)
+    az = np.arctan2(d[:, 1], d[:, 0])
+    el = np.arcsin(np.clip(d[:, 2], -1.0, 1.0))
+    ia = np.minimum(((az + np.pi) / (2.0 * np.pi) * n_azimuth).astype(np.intp), n_azimuth - 1)
+    lo, hi = el.min(), el.max()
+    ie = np.minimum(((el - lo) / max(hi - lo, 1e-9) * n_elevation).astype(np.intp), n_elevation - 1)
+    cell = ia * n_elevation + ie
+    order = np.argsort(cell, kind="stable")
+    used, starts = np.unique(cell[order], return_index=True)
+    starts = np.append(starts, len(order))
+    axis = np.array([d[order[a:b]].sum(axis=0) for a, b in zip(starts[:-1], starts[1:])]).reshape(-1, 3)
+    axis /= np.maximum(np.linalg.norm(axis, axis=1, keepdims=True), 1e-12)
+    half = np.array([np.arccos(np.clip(d[order[a:b]] @ axis[k], -1.0, 1.0)).max()
+                     for k, (a, b) in enumerate(zip(starts[:-1], starts[1:]))])
+    return DirectionBins(order, starts, axis, half + 1e-9)
+
+
+def moving_body_candidates_binned(origins_m: np.ndarray, R_world_sensor: np.ndarray, dirs_world: np.ndarray,
+                                  bins: DirectionBins, max_range_m: np.ndarray, centers_m: np.ndarray,
+                                  radii_m: np.ndarray, exclude: np.ndarray) -> np.ndarray:
+    """:func:`moving_body_candidates` of N sensors that share one ray pattern of K rays, at once.
+
+    origins_m (N, 3) and R_world_sensor (N, 3, 3) are the sensors' poses, ``dirs_world`` (N * K, 3) their
+    rays in the world (sensor n's are rows n K .. (n + 1) K - 1), ``bins`` the pattern's
+    :func:`direction_bins`, ``max_range_m`` (N,), ``exclude`` (N,) each sensor's own body (-1: none).
+    Returns indices into the N * K rays. A body's sphere (radius r at distance d) subtends the angle
+    asin(r / d); only the bins whose cone comes that close to it are tested ray by ray (the same exact
+    test as :func:`moving_body_candidates`), so the cost follows the rays near bodies, not all rays.
+    """
+    n = len(origins_m)
+    k_rays = len(dirs_world) // max(n, 1)
+    v = centers_m[None, :, :] - origins_m[:, None, :]                          # (N, B, 3)
+    dist = np.sqrt(np.einsum("nbi,nbi->nb", v, v))
+    near = dist - radii_m[None, :] <= np.asarray(max_range_m, dtype=float)[:, None]
+    own = np.asarray(exclude, dtype=np.intp)
+    mine = own >= 0
+    near[np.flatnonzero(mine), own[mine]] = False
+    sensor, body = np.nonzero(near)
+    if sensor.size == 0:
+        return np.empty(0, dtype=np.intp)
+    d, r = dist[sensor, body], radii_m[body]
+    inside = d <= r                                                            # every ray of that sensor
+    whole = np.unique(sensor[inside])
+    out = [(whole[:, None] * k_rays + np.arange(k_rays)[None, :]).reshape(-1)] if whole.size else []
+    keep = ~inside & ~np.isin(sensor, whole)
+    sensor, body, d, r = sensor[keep], body[keep], d[keep], r[keep]
+    if sensor.size:
+        vp = v[sensor, body]                                                   # (P, 3) world
+        u = np.einsum("pji,pj->pi", R_world_sensor[sensor], vp) / d[:, None]   # unit, sensor frame
+        reach = np.arcsin(r / d)
+        cos_bin = np.clip(u @ bins.axis.T, -1.0, 1.0)                         # (P, bins)
+        pair, cell = np.nonzero(np.arccos(cos_bin) <= reach[:, None] + bins.half_angle_rad[None, :])
+        if pair.size:
+            sizes = np.diff(bins.starts)[cell]
+            first = np.repeat(bins.starts[cell] - np.concatenate([[0], np.cumsum(sizes)[:-1]]), sizes)
+            ray = bins.order[first + np.arange(sizes.sum())] + np.repeat(sensor[pair] * k_rays, sizes)
+            p = np.repeat(pair, sizes)
+            along = np.einsum("mi,mi->m", dirs_world[ray], vp[p])
+            hit = along >= np.sqrt(d[p] ** 2 - r[p] ** 2)
+            out.append(ray[hit])
+    if not out:
+        return np.empty(0, dtype=np.intp)
+    return np.unique(np.concatenate(out)).astype(np.intp)
+
+
 def box_triangles(centers_m: np.ndarray, quats_xyzw: np.ndarray, half_extents_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (8N, 3) and triangles (12N, 3) of N oriented boxes (outward CCW), world frame."""
     n = len(centers_m)
@@ -111,8 +189,8 @@ def box_triangles(centers_m: np.ndarray, quats_xyzw: np.ndarray, half_extents_m:
 
 @dataclass(frozen=True)
 class RayHits:
-    """What M rays hit: ``t`` distance from the ray origin [m] (inf: nothing), unit ``normal`` (M, 3),
-    ``cls`` the SceneClass of a static hit (MOVING_BODY, NO_HIT), ``box`` the moving body's index (-1)."""
+    """What M rays hit: ``t`` distance from the ray origin [m] (inf: nothing), unit ``normal`` (M, 3), both
+    float32; ``cls`` the SceneClass of a static hit (MOVING_BODY, NO_HIT), ``box`` the moving body's index (-1)."""
 
     t: np.ndarray
     normal: np.ndarray
@@ -130,46 +208,53 @@ class RaycastWorld:
         self.static.add_triangles(o3d.core.Tensor(np.asarray(vertices_m, dtype=np.float32)),
                                   o3d.core.Tensor(np.asarray(triangles, dtype=np.uint32)))
         self._tri_cls = np.asarray(tri_cls, dtype=np.int16)
+        self._cls_of_prim = np.append(self._tri_cls, np.int16(NO_HIT))   # index len(tri_cls): no triangle hit
 
     def cast(self, origins_m: np.ndarray, dirs_world: np.ndarray, start_static_m: np.ndarray,
              start_dynamic_m: np.ndarray, boxes: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
              dynamic_rays: np.ndarray | None = None) -> RayHits:
-        """Cast rays (M,) from ``origins`` along unit ``dirs``, starting ``start_*`` metres along them in
-        the static and the moving-body scene. ``boxes`` = (centres, quats, half extents) of moving bodies;
+        """Cast rays (M,) from ``origins`` (M, 3) along unit ``dirs``, starting ``start_*`` metres along them
+        in the static and the moving-body scene. ``boxes`` = (centres, quats, half extents) of moving bodies;
         ``dynamic_rays`` (indices) limits the moving-body cast to the rays that can meet one
         (:func:`moving_body_candidates`; None: every ray)."""
-        o3d = self._o3d
-        rays = np.empty((len(dirs_world), 6), dtype=np.float32)             # Open3D's (origin, direction) rows
-        rays[:, :3] = origins_m + start_static_m[:, None] * dirs_world
+        rays = np.empty((len(dirs_world), 6), dtype=np.float32)
+        rays[:, :3] = origins_m + np.asarray(start_static_m, dtype=float)[:, None] * dirs_world
         rays[:, 3:] = dirs_world
-        hit = self.static.cast_rays(o3d.core.Tensor(rays), nthreads=0)
-        t = hit["t_hit"].numpy().astype(np.float64) + start_static_m
-        normal = hit["primitive_normals"].numpy().astype(np.float64)
-        prim = hit["primitive_ids"].numpy()
-        found = np.isfinite(t)
-        cls = np.full(len(t), NO_HIT, dtype=np.int16)
-        cls[found] = self._tri_cls[prim[found]]
-        box = np.full(len(t), -1, dtype=np.int64)
-        idx = np.arange(len(t)) if dynamic_rays is None else np.asarray(dynamic_rays, dtype=np.intp)
+        return self.cast_prepared(rays, start_static_m, start_dynamic_m, boxes, dynamic_rays)
+
+    def cast_prepared(self, rays: np.ndarray, start_static_m: np.ndarray, start_dynamic_m: np.ndarray,
+                      boxes: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
+                      dynamic_rays: np.ndarray | None = None) -> RayHits:
+        """:meth:`cast` of rays already in Open3D's layout: ``rays`` (M, 6) float32 rows of (the point where
+        the ray starts in the static scene, i.e. origin + start_static * direction; the unit direction).
+        Distances are returned from the ray's origin. Distances and normals are float32 (Open3D's)."""
+        o3d = self._o3d
+        m = len(rays)
+        start_static = np.asarray(start_static_m, dtype=np.float32)
+        hit = self.static.cast_rays(o3d.core.Tensor.from_numpy(rays), nthreads=0)
+        t = hit["t_hit"].numpy() + start_static
+        normal = hit["primitive_normals"].numpy()
+        cls = self._cls_of_prim[np.minimum(hit["primitive_ids"].numpy(), len(self._tri_cls))]   # NO_HIT: invalid id
+        box = np.full(m, -1, dtype=np.int32)
+        idx = np.arange(m) if dynamic_rays is None else np.asarray(dynamic_rays, dtype=np.intp)
         if boxes is not None and len(boxes[0]) and idx.size:
             verts, tris = box_triangles(*boxes)
             dyn = o3d.t.geometry.RaycastingScene()
             dyn.add_triangles(o3d.core.Tensor(verts.astype(np.float32)), o3d.core.Tensor(tris.astype(np.uint32)))
-            start = start_dynamic_m[idx]
-            d = dirs_world[idx]
-            sub = np.empty((len(idx), 6), dtype=np.float32)
-            sub[:, :3] = origins_m[idx] + start[:, None] * d
-            sub[:, 3:] = d
-            dhit = dyn.cast_rays(o3d.core.Tensor(sub), nthreads=0)
-            td = dhit["t_hit"].numpy().astype(np.float64) + start
+            start = np.asarray(start_dynamic_m, dtype=np.float32)[idx]
+            sub = rays[idx]
+            sub[:, :3] += (start - start_static[idx])[:, None] * sub[:, 3:]
+            dhit = dyn.cast_rays(o3d.core.Tensor.from_numpy(sub), nthreads=0)
+            td = dhit["t_hit"].numpy() + start
             nearer = td < t[idx]
             k = idx[nearer]
             t[k] = td[nearer]
             normal[k] = dhit["primitive_normals"].numpy()[nearer]
             cls[k] = MOVING_BODY
-            box[k] = dhit["primitive_ids"].numpy().astype(np.int64)[nearer] // 12
+            box[k] = dhit["primitive_ids"].numpy().astype(np.int32)[nearer] // 12
         return RayHits(t, normal, cls, box)
 
 
-__all__ = ["EXIT_MARGIN_M", "MOVING_BODY", "NO_HIT", "RayHits", "RaycastWorld", "SensorUnavailable", "box_triangles",
-           "exit_distance_m", "import_open3d", "moving_body_candidates", "ray_starts"]
+__all__ = ["EXIT_MARGIN_M", "MOVING_BODY", "NO_HIT", "DirectionBins", "RayHits", "RaycastWorld", "SensorUnavailable",
+           "box_triangles", "direction_bins", "exit_distance_m", "import_open3d", "moving_body_candidates",
+           "moving_body_candidates_binned", "ray_starts"]
