@@ -16,6 +16,8 @@ from ``ROS_DOMAIN_ID`` (default 0).
 from __future__ import annotations
 
 import os
+import threading
+import time
 from typing import Any
 from xml.sax.saxutils import quoteattr
 
@@ -306,7 +308,8 @@ class DdsPublisher:
 
 
 
-POLL_S = 0.01
+SWEEP_S = 0.5                   # every reader is also looked at this often (a notification may precede its listener)
+TAKE_N = 32                     # samples taken per reader and wake-up; a full take looks again at once
 MAX_REASON_CHARS = 300          # a rejection reason quotes at most this much of an exception's text
 
 
@@ -347,51 +350,99 @@ class DdsCommandListener:
 
     def __init__(self, publisher: DdsPublisher, vehicles: dict[str, str], topic_types: dict[str, str],
                  on_message: Any, services: list[tuple[Any, Any]] = ()) -> None:
-        import threading
-
         from cyclonedds.sub import DataReader
         from cyclonedds.topic import Topic
 
         dp = publisher.participant
+        self._lock = threading.Lock()
+        self._ready: set[int] = set()                     # indices of readers with data (their listeners say so)
+        self._wake = threading.Event()
         self._readers: list[tuple[Any, str, str, str, str]] = []   # reader, vehicle, topic kind, topic, type
         for vehicle in vehicles:
             for topic_kind, type_name in topic_types.items():
                 ros_topic = f"/{vehicle}/{topic_kind}"
                 qos = DdsPublisher.qos_for(ros_topic, type_name)
-                reader = DataReader(dp, Topic(dp, dds_topic_name(ros_topic), idl_type(type_name), qos=qos), qos=qos)
+                reader = DataReader(dp, Topic(dp, dds_topic_name(ros_topic), idl_type(type_name), qos=qos), qos=qos,
+                                    listener=self._listener(len(self._readers)))
                 publisher.reader_gids.append(reader.guid.bytes)
                 self._readers.append((reader, vehicle, topic_kind, ros_topic, type_name))
         publisher.announce()
         self._services = list(services)
+        for k, (reader, _handle) in enumerate(self._services):
+            reader.set_listener(self._listener(len(self._readers) + k))
         self._on_message = on_message
         self.failures = 0                                 # samples or callbacks that raised (reported)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="unetyemu-ros2-commands", daemon=True)
         self._thread.start()
 
+    def _listener(self, index: int) -> Any:
+        """A listener that marks reader ``index`` as having data and wakes the thread (called on a DDS thread)."""
+        from cyclonedds.core import Listener
+
+        def data_available(_reader: Any) -> None:
+            with self._lock:
+                self._ready.add(index)
+            self._wake.set()
+
+        return Listener(on_data_available=data_available)
+
     def _run(self) -> None:
-        # polled, not a WaitSet: waiting inside cyclonedds holds the GIL and starves the sim loop;
-        # an Event wait releases it (POLL_S of latency, ~10 us of work per reader per poll)
-        while not self._stop.wait(POLL_S):
-            for reader, vehicle, topic_kind, ros_topic, type_name in self._readers:
-                try:
-                    samples = take_raw(reader)
-                except Exception as exc:                 # cyclonedds itself failed: say so, go on
-                    self._deliver(vehicle, topic_kind, ros_topic, _rejected(f"cannot take a sample: {_reason(exc)}"))
-                    continue
-                for cdr in samples:
-                    try:
-                        msg = deserialize(cdr, type_name)
-                    except Exception as exc:
-                        msg = _rejected(f"not a valid {type_name}: {_reason(exc)}")
-                    self._deliver(vehicle, topic_kind, ros_topic, msg)
-            for reader, handle in self._services:
-                try:
-                    for cdr, info in take_raw(reader, with_info=True):
-                        handle(cdr, info)
-                except Exception as exc:                 # a bad request: no reply, the server goes on
-                    self.failures += 1
-                    _warn_once(f"ROS 2 service request failed: {_reason(exc)}")
+        # woken by the readers' listeners, not polled: a poll of every command reader of 60 drones every
+        # 10 ms held the GIL a third of the time; waiting in cyclonedds (a WaitSet) holds it all the time.
+        # An Event wait releases it; a sweep of every reader each SWEEP_S catches data that arrived
+        # before a listener was set.
+        next_sweep = time.monotonic() + SWEEP_S
+        n_readers = len(self._readers)
+        while not self._stop.is_set():
+            self._wake.wait(SWEEP_S)
+            self._wake.clear()
+            if self._stop.is_set():
+                return
+            with self._lock:
+                ready, self._ready = self._ready, set()
+            if time.monotonic() >= next_sweep:
+                ready = set(range(n_readers + len(self._services)))
+                next_sweep = time.monotonic() + SWEEP_S
+            again = set()
+            for index in sorted(ready):
+                if index < n_readers:
+                    full = self._take_commands(*self._readers[index])
+                else:
+                    full = self._serve(*self._services[index - n_readers])
+                if full:
+                    again.add(index)
+            if again:                                     # more than one take's worth waiting: at once
+                with self._lock:
+                    self._ready |= again
+                self._wake.set()
+
+    def _take_commands(self, reader: Any, vehicle: str, topic_kind: str, ros_topic: str, type_name: str) -> bool:
+        """Deliver the samples waiting on one command reader; True when the take was full (more may wait)."""
+        try:
+            samples = take_raw(reader, TAKE_N)
+        except Exception as exc:                 # cyclonedds itself failed: say so, go on
+            self._deliver(vehicle, topic_kind, ros_topic, _rejected(f"cannot take a sample: {_reason(exc)}"))
+            return False
+        for cdr in samples:
+            try:
+                msg = deserialize(cdr, type_name)
+            except Exception as exc:
+                msg = _rejected(f"not a valid {type_name}: {_reason(exc)}")
+            self._deliver(vehicle, topic_kind, ros_topic, msg)
+        return len(samples) >= TAKE_N
+
+    def _serve(self, reader: Any, handle: Any) -> bool:
+        """Answer the requests waiting on one service reader; True when the take was full."""
+        try:
+            requests = take_raw(reader, TAKE_N, with_info=True)
+            for cdr, info in requests:
+                handle(cdr, info)
+        except Exception as exc:                 # a bad request: no reply, the server goes on
+            self.failures += 1
+            _warn_once(f"ROS 2 service request failed: {_reason(exc)}")
+            return False
+        return len(requests) >= TAKE_N
 
     def _deliver(self, vehicle: str, topic_kind: str, ros_topic: str, msg: Any) -> None:
         try:
@@ -407,6 +458,7 @@ class DdsCommandListener:
 
     def close(self) -> None:
         self._stop.set()
+        self._wake.set()
         self._thread.join(timeout=2.0)
         self._readers.clear()
         self._services.clear()
