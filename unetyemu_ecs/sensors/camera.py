@@ -158,11 +158,11 @@ class _CameraSystem(RaycastSensorSystem):
         views = [view_key(s) for s in due]
         todo = [k for k, view in enumerate(views) if view not in shared]
         if todo:
-            hits, dirs_all, slices = self.cast_due(ctx, [due[k] for k in todo],
+            hits, cast, slices = self.cast_due(ctx, [due[k] for k in todo],
                                                    [(self._rays[due[k].entity][0], self._rays[due[k].entity][2])
                                                     for k in todo])
             for k, sl in zip(todo, slices):
-                shared[views[k]] = (hits, sl, dirs_all[sl])
+                shared[views[k]] = (hits, sl, cast[sl, 3:])
         return [shared[view] for view in views]
 
     def publish_info(self, ctx: StepContext, s: MountedSensor, time_s: float) -> None:

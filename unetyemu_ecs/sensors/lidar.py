@@ -131,8 +131,8 @@ class LidarSystem(RaycastSensorSystem):
 
     def measure(self, ctx: StepContext, due: list[MountedSensor], time_s: float) -> None:
         rays = [(self._patterns[s.entity][0], self._patterns[s.entity][2]) for s in due]
-        hits, _, slices = self.cast_due(ctx, due, rays)
-        plan = self._plan(due, rays)
+        hits, cast, slices = self.cast_due(ctx, due, rays)
+        dirs_sensor = self._plan(due, rays).dirs_sensor
         ring_bits, min_m, max_m = self._per_ray(due)
         t = hits.t
         kept = (t <= max_m) & (t >= min_m)                      # a miss (inf) is never kept
@@ -140,9 +140,9 @@ class LidarSystem(RaycastSensorSystem):
         # columns from the kept rays (np.compress of contiguous rows: the cheapest selection)
         cloud = np.empty(int(np.count_nonzero(kept)), dtype=POINT_DTYPE)
         columns = cloud.view(np.float32).reshape(-1, 5)           # x, y, z, intensity, ring (+ padding) bits
-        np.multiply(np.compress(kept, plan.dirs_sensor, axis=0), np.compress(kept, t)[:, None], out=columns[:, :3])
+        np.multiply(np.compress(kept, dirs_sensor, axis=0), np.compress(kept, t)[:, None], out=columns[:, :3])
         cos_incidence = np.einsum("ij,ij->i", np.compress(kept, hits.normal, axis=0),
-                                  np.compress(kept, plan.rays, axis=0)[:, 3:])
+                                  np.compress(kept, cast, axis=0)[:, 3:])
         np.multiply(self._reflectivity[np.compress(kept, hits.cls)], np.abs(cos_incidence), out=columns[:, 3])
         columns[:, 4] = np.compress(kept, ring_bits)
         ends = np.cumsum([np.count_nonzero(kept[sl]) for sl in slices]).tolist()
