@@ -137,7 +137,7 @@ def quat_normalize_xyzw(q: ArrayLike) -> np.ndarray:
     (..., 4) float64, xyzw, unit norm
     """
     q = _f64(q)
-    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+    return q / np.sqrt(np.einsum("...i,...i->...", q, q))[..., None]
 
 
 def R_from_quat_xyzw(q: ArrayLike) -> np.ndarray:

@@ -65,11 +65,13 @@ def vertical_speed_to_thrust_frac(vz_sp_m_s: np.ndarray, vz_m_s: np.ndarray, acc
         a_cmd = gains.gain_vz_p * err + gains.gain_vz_i * integral - gains.gain_vz_d * acc_z_m_s2
         return hover_thrust_frac * (1.0 + a_cmd / GRAVITY_M_S2) / tilt
 
-    trial = np.clip(vz_int + err * dt_s, -gains.lim_vz_int_m_s, gains.lim_vz_int_m_s)
+    trial = np.minimum(np.maximum(vz_int + err * dt_s, -gains.lim_vz_int_m_s), gains.lim_vz_int_m_s)
     u = output(trial)
     winding = ((u > 1.0) & (err > 0.0)) | ((u < 0.0) & (err < 0.0))
-    new_int = np.where(winding, vz_int, trial)
-    return np.clip(output(new_int), 0.0, 1.0), new_int
+    if winding.any():
+        trial = np.where(winding, vz_int, trial)
+        u = output(trial)
+    return np.minimum(np.maximum(u, 0.0), 1.0), trial
 
 
 def attitude_to_torque_cmd(roll_sp_rad: np.ndarray, pitch_sp_rad: np.ndarray, yaw_rate_sp_rad_s: np.ndarray,
@@ -82,7 +84,7 @@ def attitude_to_torque_cmd(roll_sp_rad: np.ndarray, pitch_sp_rad: np.ndarray, ya
     u_roll = gains.gain_att_p * (roll_sp_rad - roll_rad) - gains.gain_rate_d * rate_flu_rad_s[:, 0]
     u_pitch = gains.gain_att_p * (pitch_sp_rad - pitch_rad) - gains.gain_rate_d * rate_flu_rad_s[:, 1]
     u_yaw = gains.gain_yaw_rate_p * (yaw_rate_sp_rad_s - rate_flu_rad_s[:, 2])
-    return np.clip(np.stack([u_roll, u_pitch, u_yaw], axis=1), -1.0, 1.0)
+    return np.minimum(np.maximum(np.stack([u_roll, u_pitch, u_yaw], axis=1), -1.0), 1.0)
 
 
 def manual_to_setpoints(stick: np.ndarray, lim_tilt_rad: np.ndarray, lim_climb_m_s: np.ndarray,

@@ -73,33 +73,35 @@ def mix_x_quad(thrust_frac: np.ndarray, torque_cmd: np.ndarray) -> np.ndarray:
     A NaN in a drone's inputs zeroes that drone's command (motors off) rather than reaching the
     motors.
     """
-    thrust = np.asarray(thrust_frac, dtype=float).reshape(-1).copy()
-    torque = np.asarray(torque_cmd, dtype=float).reshape(-1, 3).copy()
-    bad = ~np.isfinite(thrust) | ~np.all(np.isfinite(torque), axis=1)
-    thrust[bad] = 0.0
-    torque[bad] = 0.0
-    torque = np.clip(torque, -1e6, 1e6)
-    thrust = np.clip(thrust, 0.0, 1.0)
+    thrust = np.asarray(thrust_frac, dtype=float).reshape(-1)
+    torque = np.asarray(torque_cmd, dtype=float).reshape(-1, 3)
+    if not (np.isfinite(thrust).all() and np.isfinite(torque).all()):
+        bad = ~np.isfinite(thrust) | ~np.all(np.isfinite(torque), axis=1)
+        thrust, torque = np.where(bad, 0.0, thrust), np.where(bad[:, None], 0.0, torque)
+    torque = np.minimum(np.maximum(torque, -1e6), 1e6)
+    thrust = np.minimum(np.maximum(thrust, 0.0), 1.0)
 
     rp = torque[:, :2] @ MIX_X[:, :2].T                       # (N, 4) roll/pitch differential
     yw = torque[:, 2:3] * MIX_X[:, 2][None, :]                # (N, 4) yaw differential
 
     # 1. roll/pitch alone must fit in the [0, 1] range: scale down uniformly if their spread is > 1
-    spread = rp.max(axis=1) - rp.min(axis=1)
-    rp *= np.where(spread > 1.0, 1.0 / np.maximum(spread, 1e-12), 1.0)[:, None]
+    rp_max, rp_min = rp.max(axis=1), rp.min(axis=1)
+    spread = rp_max - rp_min
+    if (spread > 1.0).any():
+        shrink = np.where(spread > 1.0, 1.0 / np.maximum(spread, 1e-12), 1.0)
+        rp = rp * shrink[:, None]
+        rp_max, rp_min = rp_max * shrink, rp_min * shrink
     # 2. shift the collective as little as needed so that thrust + rp lies in [0, 1]
-    lo = -rp.min(axis=1)                                       # lowest admissible collective
-    hi = 1.0 - rp.max(axis=1)                                  # highest admissible collective
-    thrust = np.clip(thrust, lo, hi)
+    thrust = np.minimum(np.maximum(thrust, -rp_min), 1.0 - rp_max)   # between the lowest and highest admissible
     base = thrust[:, None] + rp                                # (N, 4) in [0, 1]
-    # 3. yaw with the largest scale in [0, 1] that keeps every motor in [0, 1]
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        room_up = np.where(yw > 0.0, (1.0 - base) / yw, np.inf)
-        room_dn = np.where(yw < 0.0, (0.0 - base) / yw, np.inf)
-    scale = np.clip(np.minimum(room_up.min(axis=1), room_dn.min(axis=1)), 0.0, 1.0)
+    # 3. yaw with the largest scale in [0, 1] that keeps every motor in [0, 1]: per motor, the room
+    #    left in the direction its yaw share pushes, over that share (inf where the share is below 1e-12)
+    room = np.divide(np.where(yw > 0.0, 1.0 - base, -base), yw, out=np.full_like(base, np.inf),
+                     where=np.abs(yw) > 1e-12)
+    scale = np.minimum(np.maximum(room.min(axis=1), 0.0), 1.0)
     out = base + scale[:, None] * yw
     # 4. numerical safety only
-    return np.clip(out, 0.0, 1.0)
+    return np.minimum(np.maximum(out, 0.0), 1.0)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -33,6 +33,17 @@ class GuidanceGains:
     lim_decel_m_s2: Annotated[float, Gt(0.0), Le(100.0)] = 2.5      # braking that sizes the approach speed
 
 
+def _row_norm(v: np.ndarray) -> np.ndarray:
+    """Euclidean norm of each row of (N, k) ``v`` (half the cost of ``np.linalg.norm(v, axis=1)``)."""
+    return np.sqrt(np.einsum("ij,ij->i", v, v))
+
+
+def _ratio_or_inf(num: np.ndarray, den: np.ndarray, tiny: float = 1e-9) -> np.ndarray:
+    """``num / den`` where ``den > tiny``, +inf elsewhere (no division by a vanishing denominator)."""
+    num, den = np.broadcast_arrays(np.asarray(num, dtype=float), np.asarray(den, dtype=float))
+    return np.divide(num, den, out=np.full(den.shape, np.inf), where=den > tiny)
+
+
 def _per_row(gain: float | np.ndarray) -> float | np.ndarray:
     """A gain that multiplies (N, k) vectors: scalars as they are, (N,) arrays as an (N, 1) column."""
     gain = np.asarray(gain, dtype=float)
@@ -53,14 +64,14 @@ def position_to_velocity_sp(pos_sp_enu_m: np.ndarray, pos_enu_m: np.ndarray, dis
     a small sideways speed (no cross-track gain blow-up).
     """
     delta = pos_sp_enu_m - pos_enu_m
-    dist = np.linalg.norm(delta, axis=1)
-    unit = np.where(dist[:, None] > 1e-9, delta / np.maximum(dist, 1e-9)[:, None], 0.0)
+    dist = _row_norm(delta)
+    unit = delta * np.divide(1.0, dist, out=np.zeros_like(dist), where=dist > 1e-9)[:, None]
     d_go = np.maximum(dist_to_go_m, dist)
     speed = np.minimum(gains.gain_pos_p * d_go, np.sqrt(2.0 * gains.lim_decel_m_s2 * d_go))
-    h = np.linalg.norm(unit[:, :2], axis=1)
+    h = np.hypot(unit[:, 0], unit[:, 1])
     v_lim = np.where(unit[:, 2] >= 0.0, lim_climb_m_s, lim_descent_m_s)
-    speed = np.minimum(speed, np.where(h > 1e-9, lim_speed_h_m_s / np.maximum(h, 1e-9), np.inf))
-    speed = np.minimum(speed, np.where(np.abs(unit[:, 2]) > 1e-9, v_lim / np.maximum(np.abs(unit[:, 2]), 1e-9), np.inf))
+    speed = np.minimum(speed, _ratio_or_inf(lim_speed_h_m_s, h))
+    speed = np.minimum(speed, _ratio_or_inf(v_lim, np.abs(unit[:, 2])))
     return unit * speed[:, None]
 
 
@@ -74,15 +85,15 @@ def velocity_to_accel_sp(vel_sp_enu_m_s: np.ndarray, vel_enu_m_s: np.ndarray, ve
     err = vel_sp_enu_m_s[:, :2] - vel_enu_m_s[:, :2]
     lim_int = gains.lim_vel_int_m_s2 / np.maximum(gains.gain_vel_i, 1e-12)
     trial = vel_int + err * dt_s
-    trial_norm = np.linalg.norm(trial, axis=1)
-    trial *= np.minimum(1.0, lim_int / np.maximum(trial_norm, 1e-12))[:, None]
+    trial *= np.minimum(1.0, lim_int / np.maximum(_row_norm(trial), 1e-12))[:, None]
     acc = _per_row(gains.gain_vel_p) * err + _per_row(gains.gain_vel_i) * trial
     lim_acc = GRAVITY_M_S2 * np.tan(lim_tilt_rad)
-    norm = np.linalg.norm(acc, axis=1)
+    norm = _row_norm(acc)
     limited = norm > lim_acc
-    acc *= np.where(limited, lim_acc / np.maximum(norm, 1e-12), 1.0)[:, None]
-    new_int = np.where(limited[:, None], vel_int, trial)
-    return acc, new_int
+    if limited.any():
+        acc *= np.where(limited, lim_acc / np.maximum(norm, 1e-12), 1.0)[:, None]
+        return acc, np.where(limited[:, None], vel_int, trial)
+    return acc, trial
 
 
 def accel_to_tilt_sp(acc_sp_h_enu_m_s2: np.ndarray, yaw_rad: np.ndarray, lim_tilt_rad: np.ndarray
@@ -95,9 +106,10 @@ def accel_to_tilt_sp(acc_sp_h_enu_m_s2: np.ndarray, yaw_rad: np.ndarray, lim_til
     ``g tan(lim_tilt)`` (direction kept) keeps the tilt within ``lim_tilt``.
     """
     acc = np.asarray(acc_sp_h_enu_m_s2, dtype=float)
-    norm = np.linalg.norm(acc, axis=1)
+    norm = _row_norm(acc)
     lim_acc = GRAVITY_M_S2 * np.tan(lim_tilt_rad)
-    acc = acc * np.where(norm > lim_acc, lim_acc / np.maximum(norm, 1e-12), 1.0)[:, None]
+    if (norm > lim_acc).any():
+        acc = acc * np.where(norm > lim_acc, lim_acc / np.maximum(norm, 1e-12), 1.0)[:, None]
     c, s = np.cos(yaw_rad), np.sin(yaw_rad)
     a_fwd = c * acc[:, 0] + s * acc[:, 1]
     a_left = -s * acc[:, 0] + c * acc[:, 1]
@@ -108,9 +120,10 @@ def accel_to_tilt_sp(acc_sp_h_enu_m_s2: np.ndarray, yaw_rad: np.ndarray, lim_til
 
 def heading_to_yaw_rate_sp(yaw_sp_rad: np.ndarray, yaw_rad: np.ndarray, lim_yaw_rate_rad_s: np.ndarray,
                            gains: GuidanceGains) -> np.ndarray:
-    """Yaw-rate setpoint (N,) [rad/s] turning the shortest way to ``yaw_sp`` (NaN = hold: 0)."""
-    err = wrap_angle_rad(np.nan_to_num(yaw_sp_rad - yaw_rad, nan=0.0))
-    return np.clip(gains.gain_yaw_p * err, -lim_yaw_rate_rad_s, lim_yaw_rate_rad_s)
+    """Yaw-rate setpoint (N,) [rad/s] turning the shortest way to ``yaw_sp`` (NaN or infinite = hold: 0)."""
+    err = yaw_sp_rad - yaw_rad
+    err = wrap_angle_rad(np.where(np.isfinite(err), err, 0.0))
+    return np.minimum(np.maximum(gains.gain_yaw_p * err, -lim_yaw_rate_rad_s), lim_yaw_rate_rad_s)
 
 
 def body_velocity_to_enu_sp(vel_flu_m_s: np.ndarray, yaw_rad: np.ndarray, lim_climb_m_s: np.ndarray,
@@ -148,8 +161,11 @@ def cascade_pid_law(sp: PositionSetpoint, state: DroneState, airframe: Airframe,
     yaw = yaw_rad_from_quat_xyzw(state.quat_enu_flu_xyzw)
     roll_sp, pitch_sp = accel_to_tilt_sp(acc_h, yaw, airframe.max_tilt_rad)
     hold_heading = np.isfinite(sp.yaw_rad)
-    yaw_rate = np.where(hold_heading,
-                        heading_to_yaw_rate_sp(np.where(hold_heading, sp.yaw_rad, yaw), yaw,
-                                               airframe.lim_yaw_rate_rad_s, params),
-                        np.clip(sp.yaw_rate_rad_s, -airframe.lim_yaw_rate_rad_s, airframe.lim_yaw_rate_rad_s))
+    lim_rate = airframe.lim_yaw_rate_rad_s
+    if hold_heading.all():
+        yaw_rate = heading_to_yaw_rate_sp(sp.yaw_rad, yaw, lim_rate, params)
+    else:
+        yaw_rate = np.where(hold_heading,
+                            heading_to_yaw_rate_sp(np.where(hold_heading, sp.yaw_rad, yaw), yaw, lim_rate, params),
+                            np.minimum(np.maximum(sp.yaw_rate_rad_s, -lim_rate), lim_rate))
     return AttitudeSetpoint(vel_sp[:, 2], roll_sp, pitch_sp, yaw_rate), {"vel_int_m_s": vel_int}

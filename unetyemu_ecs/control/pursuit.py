@@ -42,11 +42,10 @@ def _project(pos: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray,
     """Project points (M,3) on segments a->b; return (t in [0,1], length, distance to segment)."""
     d = b - a
     length2 = np.einsum("mi,mi->m", d, d)
-    safe = np.where(length2 > 1e-12, length2, 1.0)
-    t = np.clip(np.einsum("mi,mi->m", pos - a, d) / safe, 0.0, 1.0)
-    t = np.where(length2 > 1e-12, t, 1.0)
-    closest = a + t[:, None] * d
-    return t, np.sqrt(length2), np.linalg.norm(pos - closest, axis=1)
+    t = np.divide(np.einsum("mi,mi->m", pos - a, d), length2, out=np.ones_like(length2), where=length2 > 1e-12)
+    t = np.minimum(np.maximum(t, 0.0), 1.0)                   # a degenerate segment: its end (t = 1)
+    off = pos - (a + t[:, None] * d)
+    return t, np.sqrt(length2), np.sqrt(np.einsum("mi,mi->m", off, off))
 
 
 def route_lengths(route_enu_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -99,17 +98,20 @@ def pure_pursuit(pos_enu_m: np.ndarray, route_enu_m: np.ndarray, n_points: np.nd
     total = cum[m_idx, n_points - 1]
     s_proj = cum[m_idx, seg] + t * seg_len
     remaining = np.maximum(total - s_proj, 0.0)
-    lead = lead_m * np.clip(remaining / np.maximum(final_zone_m, 1e-9), 0.0, 1.0)
+    lead = lead_m * np.minimum(remaining / np.maximum(final_zone_m, 1e-9), 1.0)      # remaining >= 0
     s_target = np.minimum(s_proj + lead, total)
 
     # Segment holding s_target: last j with cum[j] <= s_target, limited to valid segments.
-    j = np.sum(cum <= s_target[:, None] + 1e-12, axis=1) - 1
-    j = np.clip(j, 0, last_seg)
+    j = np.count_nonzero(cum <= s_target[:, None] + 1e-12, axis=1) - 1
+    j = np.minimum(np.maximum(j, 0), last_seg)
     seg_len_j = seg_lengths[m_idx, j]
-    u = np.where(seg_len_j > 1e-12, (s_target - cum[m_idx, j]) / np.where(seg_len_j > 1e-12, seg_len_j, 1.0), 1.0)
-    u = np.clip(u, 0.0, 1.0)
-    target = route_enu_m[m_idx, j] + u[:, None] * (route_enu_m[m_idx, j + 1] - route_enu_m[m_idx, j])
+    u = np.divide(s_target - cum[m_idx, j], seg_len_j, out=np.ones_like(seg_len_j), where=seg_len_j > 1e-12)
+    u = np.minimum(np.maximum(u, 0.0), 1.0)
+    p_j = route_enu_m[m_idx, j]
+    target = p_j + u[:, None] * (route_enu_m[m_idx, j + 1] - p_j)
 
-    speeds = speeds_m_s[m_idx, seg] + t[:, None] * (speeds_m_s[m_idx, seg + 1] - speeds_m_s[m_idx, seg])
-    final = route_enu_m[m_idx, n_points - 1]
-    return PursuitResult(target, seg, speeds, remaining + cross, cross, np.linalg.norm(final - pos_enu_m, axis=1))
+    v_seg = speeds_m_s[m_idx, seg]
+    speeds = v_seg + t[:, None] * (speeds_m_s[m_idx, seg + 1] - v_seg)
+    to_final = route_enu_m[m_idx, n_points - 1] - pos_enu_m
+    dist_to_final = np.sqrt(np.einsum("mi,mi->m", to_final, to_final))
+    return PursuitResult(target, seg, speeds, remaining + cross, cross, dist_to_final)

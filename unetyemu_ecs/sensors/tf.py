@@ -91,8 +91,9 @@ class TransformSystem(FleetSystem):
         if time_s + 1e-9 >= self._next_s:
             self._next_s += (np.floor((time_s + 1e-9 - self._next_s) * TF_HZ) + 1) / TF_HZ
             rows = self._vehicle_rows
-            ctx.services.sensors.put(SensorSample(time_s, "", "tf", "/tf", build=partial(
-                tf_message, time_s, self._frames, f.pos_enu_m.take(rows, axis=0), f.quat_enu_flu_xyzw.take(rows, axis=0))))
+            poses = (f.pos_enu_m.take(rows, axis=0), f.quat_enu_flu_xyzw.take(rows, axis=0))   # copies
+            ctx.services.sensors.put(SensorSample(time_s, "", "tf", "/tf",
+                                                  build=partial(tf_message, time_s, self._frames, *poses)))
 
     @staticmethod
     def _static_tree(vehicles: list[tuple[int, int, str]]) -> list[tuple[str, str, tuple[float, ...], tuple[float, ...]]]:

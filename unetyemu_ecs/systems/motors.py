@@ -51,7 +51,8 @@ class MotorSystem(FleetSystem):
         cmd = f.motor_frac_cmd[r] * (self._f_max * live)[:, None]
         f.motor_thrust_cmd_n[r] = cmd
         lagged = f.motor_thrust_n[r]
-        thrust = np.where(live[:, None], lagged + self._alpha[:, None] * (cmd - lagged), 0.0)  # a disabled motor stops at once
+        # a disabled motor stops at once
+        thrust = np.where(live[:, None], lagged + self._alpha[:, None] * (cmd - lagged), 0.0)
         f.motor_thrust_n[r] = thrust
         force, torque = rotor_wrench_enu(thrust, f.R_enu_flu[r], self._torque_matrix)
         f.force_cmd_enu_n[r] += force
