@@ -106,7 +106,9 @@ class PayloadResult(IntEnum):
 MODE_DISARMED, MODE_MANUAL, MODE_AUTO = int(FlightMode.DISARMED), int(FlightMode.MANUAL), int(FlightMode.AUTO)
 MODE_VELOCITY, MODE_ATTITUDE = int(FlightMode.VELOCITY), int(FlightMode.ATTITUDE)
 NAV_OFFBOARD, NAV_POSCTL, NAV_MANUAL = int(NavState.OFFBOARD), int(NavState.POSCTL), int(NavState.MANUAL)
+NAV_TAKEOFF, NAV_MISSION = int(NavState.TAKEOFF), int(NavState.MISSION)
 LANDED_UNDEFINED, LANDED_ON_GROUND = int(LandedState.UNDEFINED), int(LandedState.ON_GROUND)
+LANDED_IN_AIR = int(LandedState.IN_AIR)
 MISSION_RUNNING = int(MissionState.RUNNING)
 REQUEST_NONE = int(PayloadRequest.NONE)
 

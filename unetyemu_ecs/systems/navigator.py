@@ -35,8 +35,8 @@ from ..phases import Phase
 from ..transport.api import CommandStatus
 from ..world import StepContext
 from .commands import Refusal
-from .flight_state import (LANDED_ON_GROUND, LANDED_UNDEFINED, MISSION_RUNNING, MODE_DISARMED, NAV_MANUAL,
-                           NAV_OFFBOARD, NAV_POSCTL, ArmBlock, FlightMode, LandedState, MissionState, NavState, Route,
+from .flight_state import (LANDED_IN_AIR, LANDED_ON_GROUND, LANDED_UNDEFINED, MISSION_RUNNING, MODE_DISARMED,
+                           NAV_MANUAL, NAV_MISSION, NAV_OFFBOARD, NAV_POSCTL, NAV_TAKEOFF, ArmBlock, FlightMode, LandedState, MissionState, NavState, Route,
                            set_route)
 
 _NOTHING: frozenset[int] = frozenset()
@@ -592,15 +592,24 @@ def fence_active(nav: NavRuntime, params: FlightParams) -> bool:
                                   or params["GF_MAX_HOR_DIST"] > 0.0 or params["GF_MAX_VER_DIST"] > 0.0)
 
 
-def arm_blocks(f: Any, rows: np.ndarray, fence_why: list[str]) -> np.ndarray:
-    """:func:`arm_block` of the drones in ``rows`` at once (int8 ArmBlock codes), with the checks in the same
-    order; ``fence_why`` holds :func:`fence_breach` of each row ("" inside, or no fence to breach)."""
+def arming_limits(f: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Per fleet row: the battery fraction below which arming is refused (-inf: no battery) and the
+    payload bay's limit [kg] (inf: no bay), from the EnergyModel and PayloadBay components."""
     n = f.soc_frac.shape[0]
     low_frac, max_payload = np.full(n, -np.inf), np.full(n, np.inf)     # no battery: never low; no bay: no limit
     for _, (slot, energy) in esper.get_components(FleetSlot, EnergyModel):
         low_frac[slot.row] = energy.low_battery_land_frac
     for _, (slot, bay) in esper.get_components(FleetSlot, PayloadBay):
         max_payload[slot.row] = bay.max_payload_kg
+    return low_frac, max_payload
+
+
+def arm_blocks(f: Any, rows: np.ndarray, fence_why: list[str],
+               limits: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """:func:`arm_block` of the drones in ``rows`` at once (int8 ArmBlock codes), with the checks in the same
+    order; ``fence_why`` holds :func:`fence_breach` of each row ("" inside, or no fence to breach);
+    ``limits`` are :func:`arming_limits` when the caller keeps them (they change only with the ECS)."""
+    low_frac, max_payload = arming_limits(f) if limits is None else limits
     has_battery = np.isfinite(low_frac[rows])
     low = has_battery & (f.low_battery[rows] | (f.soc_frac[rows] < low_frac[rows]))
     motors_off = ~f.motors_enabled[rows]
@@ -625,6 +634,10 @@ class LandDetectorSystem(esper.Processor):
     phase = Phase.STATE
     order = 30
 
+    def __init__(self) -> None:
+        self._seen: tuple[Any, int] = (None, -1)       # the query answer and fleet version the rows are of
+        self._rows = np.empty(0, dtype=np.intp)
+
     def process(self, ctx: StepContext) -> None:
         f = ctx.fleet
         t = ctx.sim_time_s + ctx.dt_s           # the state read back is the state at the end of this step
@@ -632,16 +645,19 @@ class LandDetectorSystem(esper.Processor):
         if not drones:
             return
         contact = ctx.physics.contact_map()     # one query for the whole world
-        rows = [slot.row for _, (slot, _, _, _) in drones]
+        if self._seen[0] is not drones or self._seen[1] != f.version:   # the ECS or the fleet changed
+            self._seen = (drones, f.version)
+            self._rows = np.array([slot.row for _, (slot, _, _, _) in drones], dtype=np.intp)
+        rows = self._rows
         vel = f.vel_enu_m_s[rows]
         speed_z = np.abs(vel[:, 2]).tolist()
         speed_xy = np.hypot(vel[:, 0], vel[:, 1]).tolist()
         rate = np.linalg.norm(f.rate_flu_rad_s[rows], axis=1).tolist()
         packages = f.payload_entity[rows].tolist()
         landed = f.landed_state[rows].tolist()
+        states = list(landed)                   # the new landed states, written back at once
         modes, nav_states = f.flight_mode[rows].tolist(), f.nav_state[rows].tolist()
-        for k, (ent, (slot, body, nav, params)) in enumerate(drones):
-            row = slot.row
+        for k, (ent, (_slot, body, nav, params)) in enumerate(drones):
             touching = contact.get(body.body_id, _NOTHING)
             if packages[k] >= 0:
                 carried = esper.component_for_entity(packages[k], RigidBody).body_id
@@ -661,15 +677,18 @@ class LandDetectorSystem(esper.Processor):
             if on_ground:
                 if prev != LANDED_ON_GROUND:
                     nav.ground_since_s = t
-                    f.landed_state[row] = LANDED_ON_GROUND
+                    states[k] = LANDED_ON_GROUND
                 continue
             nav.ground_since_s = math.nan
             if modes[k] != MODE_DISARMED:
                 nav.took_off = True
-            f.landed_state[row] = int(self._airborne_state(ent, nav_states[k], nav))
+            states[k] = int(self._airborne_state(ent, nav_states[k], nav))
+        f.landed_state[rows] = states
 
     @staticmethod
     def _airborne_state(ent: int, nav_state: int, nav: NavRuntime) -> int:
+        if nav_state != NAV_TAKEOFF and nav_state != NAV_MISSION and not nav.mode:
+            return LANDED_IN_AIR                # the common case first, in plain ints
         if nav_state == NavState.TAKEOFF:
             return LandedState.TAKEOFF
         if nav.mode in ("land", "rtl") and nav.phase == "land":
@@ -695,13 +714,22 @@ class NavigatorSystem(esper.Processor):
     phase = Phase.MISSION
     order = 20
 
+    def __init__(self) -> None:
+        self._seen: tuple[Any, int] = (None, -1)       # the query answer and fleet version the caches are of
+        self._rows = np.empty(0, dtype=np.intp)
+        self._limits: tuple[np.ndarray, np.ndarray] = (np.empty(0), np.empty(0))
+
     def process(self, ctx: StepContext) -> None:
         f = ctx.fleet
         t = ctx.sim_time_s
         drones = esper.get_components(FleetSlot, NavRuntime, FlightParams)
         if not drones:
             return
-        rows = np.array([slot.row for _, (slot, _, _) in drones])
+        if self._seen[0] is not drones or self._seen[1] != f.version:   # the ECS or the fleet changed
+            self._seen = (drones, f.version)
+            self._rows = np.array([slot.row for _, (slot, _, _) in drones], dtype=np.intp)
+            self._limits = arming_limits(f)
+        rows = self._rows
         unset = rows[~f.home_set[rows]]
         if unset.size:
             f.home_enu_m[unset] = f.pos_enu_m[unset]
@@ -709,8 +737,9 @@ class NavigatorSystem(esper.Processor):
         fenced = [fence_active(nav, params) for _, (_, nav, params) in drones]
         why = [fence_breach(f, slot.row, nav, params) if on else ""
                for on, (_, (slot, nav, params)) in zip(fenced, drones)]
-        f.arm_block[rows] = arm_blocks(f, rows, why)
+        f.arm_block[rows] = arm_blocks(f, rows, why, self._limits)
         modes, nav_states = f.flight_mode[rows].tolist(), f.nav_state[rows].tolist()
+        grounded = (f.landed_state[rows] == LANDED_ON_GROUND).tolist()     # only the land detector writes it
         for k, (ent, (slot, nav, params)) in enumerate(drones):
             row = slot.row
             if modes[k] == MODE_DISARMED:
@@ -730,7 +759,7 @@ class NavigatorSystem(esper.Processor):
                     fly_manual(ctx, row, nav, params)
                 else:
                     manual_lost(ctx, ent, row, nav, params)
-            on_ground = int(f.landed_state[row]) == LANDED_ON_GROUND
+            on_ground = grounded[k]
             if not on_ground and int(f.flight_mode[row]) != MODE_DISARMED:
                 if fenced[k]:
                     enforce_fence(ctx, ent, row, nav, params)
