@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 import sys
+from typing import Any
 
 import numpy as np
 import pybullet as p
@@ -33,6 +34,7 @@ class PhysicsClient:
         self.id = cid
         self.gui = gui
         self.dt_s = float(dt_s)
+        self._contact_points: Any = None                 # this step's, once queried
         p.resetSimulation(physicsClientId=cid)
         p.setPhysicsEngineParameter(fixedTimeStep=self.dt_s, numSubSteps=0, deterministicOverlappingPairs=1,
                                     physicsClientId=cid)
@@ -49,6 +51,14 @@ class PhysicsClient:
     def step(self) -> None:
         """Advance the physics by one fixed step."""
         p.stepSimulation(physicsClientId=self.id)
+        self._contact_points = None
+
+    def _all_contact_points(self) -> Any:
+        """PyBullet's contact points after the last step, queried once per step (they change only with a step
+        or a removed body; the land detector and the impact monitor both read them)."""
+        if self._contact_points is None:
+            self._contact_points = p.getContactPoints(physicsClientId=self.id)
+        return self._contact_points
 
     def read_states(self, body_ids: np.ndarray) -> np.ndarray:
         """Base pose and velocity of each body in ``body_ids``: (M, 13) rows of position [m] (3), quaternion
@@ -100,7 +110,7 @@ class PhysicsClient:
     def contact_map(self) -> dict[int, set[int]]:
         """Body id -> ids of the bodies it touched at the last step, for every body in contact (one call)."""
         out: dict[int, set[int]] = {}
-        for c in p.getContactPoints(physicsClientId=self.id):
+        for c in self._all_contact_points():
             a, b = c[1], c[2]
             out.setdefault(a, set()).add(b)
             out.setdefault(b, set()).add(a)
@@ -108,7 +118,7 @@ class PhysicsClient:
 
     def contacts(self) -> list[tuple[int, int, tuple[float, float, float]]]:
         """Every contact point after the last step as ``(body_a, body_b, point_on_b_enu_m)`` (one call)."""
-        return [(c[1], c[2], c[6]) for c in p.getContactPoints(physicsClientId=self.id)]
+        return [(c[1], c[2], c[6]) for c in self._all_contact_points()]
 
     def contact_count(self, body_a: int, body_b: int | None = None) -> int:
         """Number of contact points of ``body_a`` (with ``body_b`` if given) after the last step."""
@@ -118,6 +128,7 @@ class PhysicsClient:
 
     def remove_body(self, body_id: int) -> None:
         p.removeBody(body_id, physicsClientId=self.id)
+        self._contact_points = None
 
     def close(self) -> None:
         """Disconnect; safe to call twice."""
