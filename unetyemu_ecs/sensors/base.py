@@ -188,12 +188,14 @@ class SensorSystemBase(FleetSystem):
     def measure(self, ctx: StepContext, due: list[MountedSensor], time_s: float) -> None:
         raise NotImplementedError
 
-    def publish(self, ctx: StepContext, sensor: MountedSensor, time_s: float, msg: Any, *, key: str | None = None,
-                topic: str | None = None) -> None:
+    def publish(self, ctx: StepContext, sensor: MountedSensor, time_s: float, msg: Any = None, *,
+                key: str | None = None, topic: str | None = None, build: Callable[[], Any] | None = None) -> None:
         """Put ``msg`` in the outputs under this system's key and the sensor's topic (or ``key`` /
-        ``topic`` for a companion message such as a camera's CameraInfo), on ROS 2 if the sensor is."""
+        ``topic`` for a companion message such as a camera's CameraInfo), on ROS 2 if the sensor is.
+        With ``build`` instead of ``msg`` the message is made when first read (:class:`SensorSample`):
+        the measurement is taken now, its message costs the loop nothing when nobody listens."""
         ctx.services.sensors.put(SensorSample(time_s, sensor.vehicle, key or self.key, topic or sensor.topic, msg,
-                                              sensor.spec.ros2))
+                                              sensor.spec.ros2, build=build))
 
 
 __all__ = ["MountedSensor", "SensorOutputs", "SensorSample", "SensorSpec", "SensorSystemBase"]

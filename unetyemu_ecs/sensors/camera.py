@@ -19,6 +19,7 @@ Pinhole model in the optical frame (REP-103: z forward, x right, y down), square
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from typing import Annotated, Any, ClassVar
 
 import esper
@@ -168,8 +169,8 @@ class _CameraSystem(RaycastSensorSystem):
     def publish_info(self, ctx: StepContext, s: MountedSensor, time_s: float) -> None:
         """The CameraInfo of a frame, on ``<image topic's namespace>/camera_info`` (image_transport)."""
         topic = s.topic.rsplit("/", 1)[0] + "/camera_info"
-        msg = camera_info(time_s, s.frame_id, s.spec.width, s.spec.height, s.spec.hfov_deg)
-        self.publish(ctx, s, time_s, msg, key=f"{self.key}_info", topic=topic)
+        self.publish(ctx, s, time_s, key=f"{self.key}_info", topic=topic,
+                     build=partial(camera_info, time_s, s.frame_id, s.spec.width, s.spec.height, s.spec.hfov_deg))
 
 
 _CLASS_RGB = np.zeros((256, 3))
@@ -202,7 +203,7 @@ class RgbCameraSystem(_CameraSystem):
             sky = (cls == NO_HIT) | ~(hits.t[sl] <= spec.max_range_m)
             rgb[sky] = SKY_RGB
             pixels = np.clip(rgb * 255.0 + 0.5, 0, 255).astype(np.uint8).reshape(spec.height, spec.width, 3)
-            self.publish(ctx, s, time_s, image(time_s, s.frame_id, spec.width, spec.height, "rgb8", pixels))
+            self.publish(ctx, s, time_s, build=partial(image, time_s, s.frame_id, spec.width, spec.height, "rgb8", pixels))
             self.publish_info(ctx, s, time_s)
 
 
@@ -221,7 +222,7 @@ class DepthCameraSystem(_CameraSystem):
             _, z, _ = self._rays[s.entity]
             t = hits.t[sl]
             depth = np.where(t <= spec.max_range_m, t * z, np.inf).astype("<f4").reshape(spec.height, spec.width)
-            self.publish(ctx, s, time_s, image(time_s, s.frame_id, spec.width, spec.height, "32FC1", depth))
+            self.publish(ctx, s, time_s, build=partial(image, time_s, s.frame_id, spec.width, spec.height, "32FC1", depth))
             self.publish_info(ctx, s, time_s)
 
 

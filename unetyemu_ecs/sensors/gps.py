@@ -9,7 +9,8 @@ the covariance is diagonal and known (its variances are the noise's).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated, ClassVar
+from functools import partial
+from typing import Annotated, Any, ClassVar
 
 import numpy as np
 
@@ -63,17 +64,23 @@ class GpsSystem(SensorSystemBase):
                 std = np.array([spec.horizontal_noise_std_m, spec.horizontal_noise_std_m, spec.vertical_noise_std_m])
                 antenna[k] += std * self.rng_for(ctx, s).standard_normal(3)
         lat, lon, alt = self._ltp.to_geodetic(antenna)
-        NavSatFix, NavSatStatus = msg_type("sensor_msgs/msg/NavSatFix"), msg_type("sensor_msgs/msg/NavSatStatus")
         for k, s in enumerate(due):
             spec = s.spec
             var_h = max(spec.horizontal_noise_std_m ** 2, GROUND_TRUTH_VARIANCE_M2)
             var_v = max(spec.vertical_noise_std_m ** 2, GROUND_TRUTH_VARIANCE_M2)
-            msg = NavSatFix(header=header(time_s, s.frame_id),
-                            status=NavSatStatus(status=NavSatStatus.STATUS_FIX, service=NavSatStatus.SERVICE_GPS),
-                            latitude=float(lat[k]), longitude=float(lon[k]), altitude=float(alt[k]),
-                            position_covariance=np.diag([var_h, var_h, var_v]).reshape(-1).astype(np.float64),
-                            position_covariance_type=NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN)
-            self.publish(ctx, s, time_s, msg)
+            self.publish(ctx, s, time_s, build=partial(fix_message, time_s, s.frame_id, float(lat[k]), float(lon[k]),
+                                                       float(alt[k]), var_h, var_v))
 
 
-__all__ = ["GpsSensor", "GpsSystem"]
+def fix_message(time_s: float, frame_id: str, lat_deg: float, lon_deg: float, alt_m: float, var_h_m2: float,
+                var_v_m2: float) -> Any:
+    """The sensor_msgs/NavSatFix of one fix (WGS84 degrees, ellipsoid height, diagonal covariance)."""
+    NavSatFix, NavSatStatus = msg_type("sensor_msgs/msg/NavSatFix"), msg_type("sensor_msgs/msg/NavSatStatus")
+    return NavSatFix(header=header(time_s, frame_id),
+                     status=NavSatStatus(status=NavSatStatus.STATUS_FIX, service=NavSatStatus.SERVICE_GPS),
+                     latitude=lat_deg, longitude=lon_deg, altitude=alt_m,
+                     position_covariance=np.diag([var_h_m2, var_h_m2, var_v_m2]).reshape(-1).astype(np.float64),
+                     position_covariance_type=NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN)
+
+
+__all__ = ["GpsSensor", "GpsSystem", "fix_message"]

@@ -17,7 +17,8 @@ white-noise variances. Each IMU has its own seeded stream.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated, ClassVar
+from functools import partial
+from typing import Annotated, Any, ClassVar
 
 import numpy as np
 
@@ -72,7 +73,6 @@ class ImuSystem(SensorSystemBase):
         accel = np.einsum("nji,nj->ni", R_mount, specific_body)
         gyro = np.einsum("nji,nj->ni", R_mount, f.rate_flu_rad_s[rows])
         q_sensor = quat_multiply_xyzw(f.quat_enu_flu_xyzw[rows], q_mount)
-        Imu = msg_type("sensor_msgs/msg/Imu")
         for k, s in enumerate(due):
             spec: ImuSensor = s.spec
             g, a = gyro[k].copy(), accel[k].copy()
@@ -89,13 +89,19 @@ class ImuSystem(SensorSystemBase):
                 g += noise[:3]
                 a += noise[3:]
             self._last_s[s.entity] = time_s
-            msg = Imu(header=header(time_s, s.frame_id), orientation=quaternion(q_sensor[k]),
-                      orientation_covariance=diagonal_covariance([ORIENTATION_VARIANCE_RAD2] * 3),
-                      angular_velocity=vector3(g),
-                      angular_velocity_covariance=diagonal_covariance([spec.gyro_noise_std_rad_s ** 2] * 3),
-                      linear_acceleration=vector3(a),
-                      linear_acceleration_covariance=diagonal_covariance([spec.accel_noise_std_m_s2 ** 2] * 3))
-            self.publish(ctx, s, time_s, msg)
+            self.publish(ctx, s, time_s, build=partial(imu_message, time_s, s.frame_id, q_sensor[k], g, a,
+                                                       spec.gyro_noise_std_rad_s ** 2, spec.accel_noise_std_m_s2 ** 2))
 
 
-__all__ = ["ImuSensor", "ImuSystem"]
+def imu_message(time_s: float, frame_id: str, q_xyzw: np.ndarray, gyro_rad_s: np.ndarray, accel_m_s2: np.ndarray,
+                gyro_var: float, accel_var: float) -> Any:
+    """The sensor_msgs/Imu of one measurement (orientation xyzw in ENU, body rates and specific force in the
+    sensor axes, diagonal covariances)."""
+    return msg_type("sensor_msgs/msg/Imu")(
+        header=header(time_s, frame_id), orientation=quaternion(q_xyzw),
+        orientation_covariance=diagonal_covariance([ORIENTATION_VARIANCE_RAD2] * 3),
+        angular_velocity=vector3(gyro_rad_s), angular_velocity_covariance=diagonal_covariance([gyro_var] * 3),
+        linear_acceleration=vector3(accel_m_s2), linear_acceleration_covariance=diagonal_covariance([accel_var] * 3))
+
+
+__all__ = ["ImuSensor", "ImuSystem", "imu_message"]

@@ -16,7 +16,7 @@ angle, in [0, 1].
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cache
+from functools import cache, partial
 from typing import Annotated, Any, ClassVar
 
 import numpy as np
@@ -147,7 +147,7 @@ class LidarSystem(RaycastSensorSystem):
         columns[:, 4] = np.compress(kept, ring_bits)
         ends = np.cumsum([np.count_nonzero(kept[sl]) for sl in slices]).tolist()
         for s, a, b in zip(due, [0, *ends[:-1]], ends):
-            self.publish(ctx, s, time_s, pointcloud2_of_points(cloud[a:b], time_s, s.frame_id))
+            self.publish(ctx, s, time_s, build=partial(pointcloud2_of_points, cloud[a:b], time_s, s.frame_id))
 
     def _per_ray(self, due: list[MountedSensor]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Of every ray of ``due`` cast together: its ring as the bits of the point's last float32 column

@@ -8,6 +8,8 @@ the world ENU frame (``map``): ground truth does not drift. Twist in the child f
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
+from typing import Any
 
 import numpy as np
 
@@ -41,20 +43,25 @@ class OdometrySystem(SensorSystemBase):
     def measure(self, ctx: StepContext, due: list[MountedSensor], time_s: float) -> None:
         f = ctx.fleet
         rows = np.array([s.row for s in due])
-        R = R_from_quat_xyzw(f.quat_enu_flu_xyzw[rows])
-        v_body = np.einsum("nji,nj->ni", R, f.vel_enu_m_s[rows])
-        cov = np.eye(6).reshape(-1) * GROUND_TRUTH_VARIANCE
-        Odometry = msg_type("nav_msgs/msg/Odometry")
-        PoseCov, TwistCov = msg_type("geometry_msgs/msg/PoseWithCovariance"), msg_type("geometry_msgs/msg/TwistWithCovariance")
-        Pose, Twist = msg_type("geometry_msgs/msg/Pose"), msg_type("geometry_msgs/msg/Twist")
+        pos, quat, rate = f.pos_enu_m[rows], f.quat_enu_flu_xyzw[rows], f.rate_flu_rad_s[rows]     # copies
+        v_body = np.einsum("nji,nj->ni", R_from_quat_xyzw(quat), f.vel_enu_m_s[rows])
         for k, s in enumerate(due):
-            r = rows[k]
-            msg = Odometry(header=header(time_s, s.frame_id), child_frame_id=f"{s.vehicle}/base_link",
-                           pose=PoseCov(pose=Pose(position=point(f.pos_enu_m[r]),
-                                                  orientation=quaternion(f.quat_enu_flu_xyzw[r])), covariance=cov.copy()),
-                           twist=TwistCov(twist=Twist(linear=vector3(v_body[k]), angular=vector3(f.rate_flu_rad_s[r])),
-                                          covariance=cov.copy()))
-            self.publish(ctx, s, time_s, msg)
+            self.publish(ctx, s, time_s, build=partial(odometry_message, time_s, s.frame_id, f"{s.vehicle}/base_link",
+                                                       pos[k], quat[k], v_body[k], rate[k]))
 
 
-__all__ = ["OdometrySensor", "OdometrySystem"]
+def odometry_message(time_s: float, frame_id: str, child_frame_id: str, pos_enu_m: np.ndarray, quat_xyzw: np.ndarray,
+                     vel_flu_m_s: np.ndarray, rate_flu_rad_s: np.ndarray) -> Any:
+    """The nav_msgs/Odometry of one ground-truth sample (pose in odom, twist in base_link)."""
+    cov = np.eye(6).reshape(-1) * GROUND_TRUTH_VARIANCE
+    Odometry = msg_type("nav_msgs/msg/Odometry")
+    PoseCov, TwistCov = msg_type("geometry_msgs/msg/PoseWithCovariance"), msg_type("geometry_msgs/msg/TwistWithCovariance")
+    Pose, Twist = msg_type("geometry_msgs/msg/Pose"), msg_type("geometry_msgs/msg/Twist")
+    return Odometry(header=header(time_s, frame_id), child_frame_id=child_frame_id,
+                    pose=PoseCov(pose=Pose(position=point(pos_enu_m), orientation=quaternion(quat_xyzw)),
+                                 covariance=cov.copy()),
+                    twist=TwistCov(twist=Twist(linear=vector3(vel_flu_m_s), angular=vector3(rate_flu_rad_s)),
+                                   covariance=cov.copy()))
+
+
+__all__ = ["OdometrySensor", "OdometrySystem", "odometry_message"]
