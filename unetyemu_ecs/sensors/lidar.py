@@ -29,7 +29,7 @@ from ..world import StepContext
 from .base import MountedSensor, SensorSpec
 from .messages import header, msg_type
 from .raycast import MOVING_BODY
-from .raycast_system import RaycastSensorSystem
+from .raycast_system import MAX_PLANS, RaycastSensorSystem
 
 # Reflectivity per scene class (ours: orders of magnitude of concrete, asphalt, vegetation), and bodies.
 REFLECTIVITY = {SceneClass.GROUND: 0.3, SceneClass.ROAD: 0.15, SceneClass.SIDEWALK: 0.35,
@@ -133,31 +133,33 @@ class LidarSystem(RaycastSensorSystem):
         rays = [(self._patterns[s.entity][0], self._patterns[s.entity][2]) for s in due]
         hits, cast, slices = self.cast_due(ctx, due, rays)
         dirs_sensor = self._plan(due, rays).dirs_sensor
-        ring_bits, min_m, max_m = self._per_ray(due)
+        rings, min_m, max_m = self._per_ray(due)
         t = hits.t
         kept = (t <= max_m) & (t >= min_m)                      # a miss (inf) is never kept
         # every sensor's points in one array, in sensor order (each cloud is a slice of it), written by
         # columns from the kept rays (np.compress of contiguous rows: the cheapest selection)
         cloud = np.empty(int(np.count_nonzero(kept)), dtype=POINT_DTYPE)
-        columns = cloud.view(np.float32).reshape(-1, 5)           # x, y, z, intensity, ring (+ padding) bits
+        columns = cloud.view(np.float32).reshape(-1, 5)           # x, y, z, intensity, (ring + padding)
         np.multiply(np.compress(kept, dirs_sensor, axis=0), np.compress(kept, t)[:, None], out=columns[:, :3])
         cos_incidence = np.einsum("ij,ij->i", np.compress(kept, hits.normal, axis=0),
                                   np.compress(kept, cast, axis=0)[:, 3:])
         np.multiply(self._reflectivity[np.compress(kept, hits.cls)], np.abs(cos_incidence), out=columns[:, 3])
-        columns[:, 4] = np.compress(kept, ring_bits)
+        cloud.view(np.uint32).reshape(-1, 5)[:, 4] = np.compress(kept, rings)   # ring, then 2 bytes of padding
         ends = np.cumsum([np.count_nonzero(kept[sl]) for sl in slices]).tolist()
         for s, a, b in zip(due, [0, *ends[:-1]], ends):
             self.publish(ctx, s, time_s, build=partial(pointcloud2_of_points, cloud[a:b], time_s, s.frame_id))
 
     def _per_ray(self, due: list[MountedSensor]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Of every ray of ``due`` cast together: its ring as the bits of the point's last float32 column
-        (uint16 ring, 2 bytes of zero padding, little-endian) and its kept range [min, max] (float32, m)."""
+        """Of every ray of ``due`` cast together: its ring as the point's last 4 bytes (uint32 little-endian:
+        the uint16 ring, then 2 bytes of zero padding) and its kept range [min, max] (float32, m)."""
         key = tuple(s.entity for s in due)
         found = self._ray_limits.get(key)
         if found is None:
+            if len(self._ray_limits) >= MAX_PLANS:
+                del self._ray_limits[next(iter(self._ray_limits))]      # the oldest
             sizes = [len(self._patterns[s.entity][1]) for s in due]
             rings = np.concatenate([self._patterns[s.entity][1] for s in due]).astype("<u4")
-            found = (rings.view("<f4"),
+            found = (rings,
                      np.repeat(np.array([s.spec.min_range_m for s in due], dtype=np.float32), sizes),
                      np.repeat(np.array([s.spec.max_range_m for s in due], dtype=np.float32), sizes))
             self._ray_limits[key] = found

@@ -120,7 +120,7 @@ def direction_bins(dirs_sensor: np.ndarray, n_azimuth: int = 36, n_elevation: in
     ie = np.minimum(((el - lo) / max(hi - lo, 1e-9) * n_elevation).astype(np.intp), n_elevation - 1)
     cell = ia * n_elevation + ie
     order = np.argsort(cell, kind="stable")
-    used, starts = np.unique(cell[order], return_index=True)
+    _cells, starts = np.unique(cell[order], return_index=True)
     starts = np.append(starts, len(order))
     axis = np.array([d[order[a:b]].sum(axis=0) for a, b in zip(starts[:-1], starts[1:])]).reshape(-1, 3)
     axis /= np.maximum(np.linalg.norm(axis, axis=1, keepdims=True), 1e-12)

@@ -147,4 +147,4 @@ class CastPlan:
     bins: DirectionBins | None
 
 
-__all__ = ["RaycastSensorSystem"]
+__all__ = ["MAX_PLANS", "CastPlan", "RaycastSensorSystem"]
