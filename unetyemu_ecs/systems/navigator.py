@@ -36,8 +36,8 @@ from ..transport.api import CommandStatus
 from ..world import StepContext
 from .commands import Refusal
 from .flight_state import (LANDED_IN_AIR, LANDED_ON_GROUND, LANDED_UNDEFINED, MISSION_RUNNING, MODE_DISARMED,
-                           NAV_MANUAL, NAV_MISSION, NAV_OFFBOARD, NAV_POSCTL, NAV_TAKEOFF, ArmBlock, FlightMode, LandedState, MissionState, NavState, Route,
-                           set_route)
+                           NAV_MANUAL, NAV_MISSION, NAV_OFFBOARD, NAV_POSCTL, NAV_TAKEOFF, ArmBlock, FlightMode,
+                           LandedState, MissionState, NavState, Route, set_route)
 
 _NOTHING: frozenset[int] = frozenset()
 LAND_TRIGGER_S = 0.3        # the land-detector conditions must hold this long (PX4 LandDetector trigger time)
