@@ -87,7 +87,37 @@ def prescan(text: str, source: str, *, max_depth: int, max_nodes: int, aliases: 
             if total > max_nodes:
                 fail(event, f"{what} has more than {max_nodes} values (after expanding aliases)")
     except yaml.YAMLError:
+        # Text that does not parse is left for the loader, unless it fails for its nesting: libyaml (PyYAML
+        # 6.0.4) refuses flow nesting beyond 1000 before it emits the first event, so look at the brackets
+        line = _flow_nesting_line(text, max_depth)
+        if line is not None:
+            raise ConfigError([Issue(source, line, (), f"{what} is nested more than {max_depth} levels deep")]) from None
         return
+
+
+def _flow_nesting_line(text: str, max_depth: int) -> int | None:
+    """The line (1-based) where ``[``/``{`` brackets outside quoted strings first nest deeper than
+    ``max_depth``, or None. Only for text the YAML parser refused (a plain scalar may hold a bracket)."""
+    depth, line, quote, escaped = 0, 1, "", False
+    for ch in text:
+        if ch == "\n":
+            line += 1
+        if quote:
+            if escaped:
+                escaped = False
+            elif ch == "\\" and quote == '"':
+                escaped = True
+            elif ch == quote:
+                quote = ""
+        elif ch in "\"'":
+            quote = ch
+        elif ch in "[{":
+            depth += 1
+            if depth > max_depth:
+                return line
+        elif ch in "]}":
+            depth = max(depth - 1, 0)
+    return None
 
 
 def _build(node: yaml.Node, path: Path, src: SourceMap, constructor: yaml.constructor.SafeConstructor,
