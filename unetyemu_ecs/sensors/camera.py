@@ -203,7 +203,8 @@ class RgbCameraSystem(_CameraSystem):
             sky = (cls == NO_HIT) | ~(hits.t[sl] <= spec.max_range_m)
             rgb[sky] = SKY_RGB
             pixels = np.clip(rgb * 255.0 + 0.5, 0, 255).astype(np.uint8).reshape(spec.height, spec.width, 3)
-            self.publish(ctx, s, time_s, build=partial(image, time_s, s.frame_id, spec.width, spec.height, "rgb8", pixels))
+            self.publish(ctx, s, time_s,
+                         build=partial(image, time_s, s.frame_id, spec.width, spec.height, "rgb8", pixels))
             self.publish_info(ctx, s, time_s)
 
 
@@ -222,7 +223,8 @@ class DepthCameraSystem(_CameraSystem):
             _, z, _ = self._rays[s.entity]
             t = hits.t[sl]
             depth = np.where(t <= spec.max_range_m, t * z, np.inf).astype("<f4").reshape(spec.height, spec.width)
-            self.publish(ctx, s, time_s, build=partial(image, time_s, s.frame_id, spec.width, spec.height, "32FC1", depth))
+            self.publish(ctx, s, time_s,
+                         build=partial(image, time_s, s.frame_id, spec.width, spec.height, "32FC1", depth))
             self.publish_info(ctx, s, time_s)
 
 
