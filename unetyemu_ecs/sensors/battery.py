@@ -8,7 +8,8 @@ has no discharge curve, and says so by reporting the nominal voltage).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated
+from functools import partial
+from typing import Annotated, Any
 
 import esper
 import numpy as np
@@ -44,30 +45,36 @@ class BatterySystem(SensorSystemBase):
 
     def measure(self, ctx: StepContext, due: list[MountedSensor], time_s: float) -> None:
         f = ctx.fleet
-        BatteryState = msg_type("sensor_msgs/msg/BatteryState")
         for s in due:
             spec: BatterySensor = s.spec
             model = esper.component_for_entity(s.entity, EnergyModel)
-            v = spec.nominal_voltage_v
             charging = bool(f.charging[s.row])
-            soc = float(f.soc_frac[s.row])
-            status = (BatteryState.POWER_SUPPLY_STATUS_FULL if soc >= 1.0 and not charging else
-                      BatteryState.POWER_SUPPLY_STATUS_CHARGING if charging else
-                      BatteryState.POWER_SUPPLY_STATUS_DISCHARGING)
             # ROS: current is negative while discharging
-            current = (float(f.charge_power_w[s.row]) if charging else -float(f.power_w[s.row])) / v
-            msg = BatteryState(
-                header=header(time_s, s.frame_id), voltage=float(v), temperature=float("nan"), current=current,
-                charge=float(f.energy_j[s.row]) / 3600.0 / v, capacity=model.battery_wh / v,
-                design_capacity=model.battery_wh / v, percentage=soc,
-                power_supply_status=status,
-                power_supply_health=(BatteryState.POWER_SUPPLY_HEALTH_DEAD if soc <= 0.0
-                                     else BatteryState.POWER_SUPPLY_HEALTH_GOOD),
-                power_supply_technology=BatteryState.POWER_SUPPLY_TECHNOLOGY_LIPO, present=True,
-                cell_voltage=np.full(spec.cells, v / spec.cells, dtype=np.float32),
-                cell_temperature=np.full(spec.cells, np.nan, dtype=np.float32),
-                location=s.vehicle, serial_number="")
-            self.publish(ctx, s, time_s, msg)
+            power_w = float(f.charge_power_w[s.row]) if charging else -float(f.power_w[s.row])
+            self.publish(ctx, s, time_s, build=partial(battery_message, time_s, s.frame_id, s.vehicle,
+                                                       spec.nominal_voltage_v, spec.cells, model.battery_wh,
+                                                       float(f.soc_frac[s.row]), float(f.energy_j[s.row]), power_w,
+                                                       charging))
 
 
-__all__ = ["BatterySensor", "BatterySystem"]
+def battery_message(time_s: float, frame_id: str, vehicle: str, voltage_v: float, cells: int, capacity_wh: float,
+                    soc_frac: float, energy_j: float, power_w: float, charging: bool) -> Any:
+    """The sensor_msgs/BatteryState of one reading (``power_w`` > 0 while charging, < 0 while discharging)."""
+    BatteryState = msg_type("sensor_msgs/msg/BatteryState")
+    v = voltage_v
+    status = (BatteryState.POWER_SUPPLY_STATUS_FULL if soc_frac >= 1.0 and not charging else
+              BatteryState.POWER_SUPPLY_STATUS_CHARGING if charging else
+              BatteryState.POWER_SUPPLY_STATUS_DISCHARGING)
+    return BatteryState(
+        header=header(time_s, frame_id), voltage=float(v), temperature=float("nan"), current=power_w / v,
+        charge=energy_j / 3600.0 / v, capacity=capacity_wh / v, design_capacity=capacity_wh / v, percentage=soc_frac,
+        power_supply_status=status,
+        power_supply_health=(BatteryState.POWER_SUPPLY_HEALTH_DEAD if soc_frac <= 0.0
+                             else BatteryState.POWER_SUPPLY_HEALTH_GOOD),
+        power_supply_technology=BatteryState.POWER_SUPPLY_TECHNOLOGY_LIPO, present=True,
+        cell_voltage=np.full(cells, v / cells, dtype=np.float32),
+        cell_temperature=np.full(cells, np.nan, dtype=np.float32),
+        location=vehicle, serial_number="")
+
+
+__all__ = ["BatterySensor", "BatterySystem", "battery_message"]
