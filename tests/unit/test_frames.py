@@ -371,3 +371,9 @@ def test_camera_optical_x_is_right_and_y_is_down_on_level_body_facing_east():
     # THEN image x points to the body's right (south) and image y points down
     assert_allclose(right_enu, [0.0, -1.0, 0.0], atol=ATOL_ROT)
     assert_allclose(down_enu, [0.0, 0.0, -1.0], atol=ATOL_ROT)
+
+
+def test_row_norm_is_the_euclidean_length_of_each_row(rng):
+    v = rng.normal(size=(N_RANDOM, 3)) * 100.0
+    assert_allclose(F.row_norm(v), np.linalg.norm(v, axis=1), rtol=1e-14)
+    assert_allclose(F.row_norm(np.array([[3.0, 4.0], [0.0, 0.0]])), [5.0, 0.0])

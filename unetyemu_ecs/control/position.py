@@ -14,7 +14,7 @@ from typing import Annotated
 import numpy as np
 
 from ..config.schema import Ge, Gt, Le
-from ..frames import yaw_rad_from_quat_xyzw
+from ..frames import row_norm, yaw_rad_from_quat_xyzw
 from ..units import GRAVITY_M_S2, wrap_angle_rad
 from .layers import Airframe, AttitudeSetpoint, DroneState, PositionSetpoint
 
@@ -31,11 +31,6 @@ class GuidanceGains:
     lim_vel_int_m_s2: Annotated[float, Ge(0.0), Le(100.0)] = 2.0    # clamp on the integral's acceleration
     gain_yaw_p: Annotated[float, Gt(0.0), Le(1_000.0)] = 2.0          # [1/s] heading error -> yaw rate
     lim_decel_m_s2: Annotated[float, Gt(0.0), Le(100.0)] = 2.5      # braking that sizes the approach speed
-
-
-def _row_norm(v: np.ndarray) -> np.ndarray:
-    """Euclidean norm of each row of (N, k) ``v`` (half the cost of ``np.linalg.norm(v, axis=1)``)."""
-    return np.sqrt(np.einsum("ij,ij->i", v, v))
 
 
 def _ratio_or_inf(num: np.ndarray, den: np.ndarray, tiny: float = 1e-9) -> np.ndarray:
@@ -64,7 +59,7 @@ def position_to_velocity_sp(pos_sp_enu_m: np.ndarray, pos_enu_m: np.ndarray, dis
     a small sideways speed (no cross-track gain blow-up).
     """
     delta = pos_sp_enu_m - pos_enu_m
-    dist = _row_norm(delta)
+    dist = row_norm(delta)
     unit = delta * np.divide(1.0, dist, out=np.zeros_like(dist), where=dist > 1e-9)[:, None]
     d_go = np.maximum(dist_to_go_m, dist)
     speed = np.minimum(gains.gain_pos_p * d_go, np.sqrt(2.0 * gains.lim_decel_m_s2 * d_go))
@@ -85,10 +80,10 @@ def velocity_to_accel_sp(vel_sp_enu_m_s: np.ndarray, vel_enu_m_s: np.ndarray, ve
     err = vel_sp_enu_m_s[:, :2] - vel_enu_m_s[:, :2]
     lim_int = gains.lim_vel_int_m_s2 / np.maximum(gains.gain_vel_i, 1e-12)
     trial = vel_int + err * dt_s
-    trial *= np.minimum(1.0, lim_int / np.maximum(_row_norm(trial), 1e-12))[:, None]
+    trial *= np.minimum(1.0, lim_int / np.maximum(row_norm(trial), 1e-12))[:, None]
     acc = _per_row(gains.gain_vel_p) * err + _per_row(gains.gain_vel_i) * trial
     lim_acc = GRAVITY_M_S2 * np.tan(lim_tilt_rad)
-    norm = _row_norm(acc)
+    norm = row_norm(acc)
     limited = norm > lim_acc
     if limited.any():
         acc *= np.where(limited, lim_acc / np.maximum(norm, 1e-12), 1.0)[:, None]
@@ -106,7 +101,7 @@ def accel_to_tilt_sp(acc_sp_h_enu_m_s2: np.ndarray, yaw_rad: np.ndarray, lim_til
     ``g tan(lim_tilt)`` (direction kept) keeps the tilt within ``lim_tilt``.
     """
     acc = np.asarray(acc_sp_h_enu_m_s2, dtype=float)
-    norm = _row_norm(acc)
+    norm = row_norm(acc)
     lim_acc = GRAVITY_M_S2 * np.tan(lim_tilt_rad)
     if (norm > lim_acc).any():
         acc = acc * np.where(norm > lim_acc, lim_acc / np.maximum(norm, 1e-12), 1.0)[:, None]

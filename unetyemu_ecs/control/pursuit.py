@@ -16,6 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..frames import row_norm
+
 
 @dataclass(frozen=True)
 class PursuitResult:
@@ -44,8 +46,7 @@ def _project(pos: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray,
     length2 = np.einsum("mi,mi->m", d, d)
     t = np.divide(np.einsum("mi,mi->m", pos - a, d), length2, out=np.ones_like(length2), where=length2 > 1e-12)
     t = np.minimum(np.maximum(t, 0.0), 1.0)                   # a degenerate segment: its end (t = 1)
-    off = pos - (a + t[:, None] * d)
-    return t, np.sqrt(length2), np.sqrt(np.einsum("mi,mi->m", off, off))
+    return t, np.sqrt(length2), row_norm(pos - (a + t[:, None] * d))
 
 
 def route_lengths(route_enu_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -112,6 +113,5 @@ def pure_pursuit(pos_enu_m: np.ndarray, route_enu_m: np.ndarray, n_points: np.nd
 
     v_seg = speeds_m_s[m_idx, seg]
     speeds = v_seg + t[:, None] * (speeds_m_s[m_idx, seg + 1] - v_seg)
-    to_final = route_enu_m[m_idx, n_points - 1] - pos_enu_m
-    dist_to_final = np.sqrt(np.einsum("mi,mi->m", to_final, to_final))
+    dist_to_final = row_norm(route_enu_m[m_idx, n_points - 1] - pos_enu_m)
     return PursuitResult(target, seg, speeds, remaining + cross, cross, dist_to_final)

@@ -6,7 +6,7 @@ import esper
 import numpy as np
 
 from ..fleet import row_selector
-from ..frames import R_from_quat_xyzw
+from ..frames import R_from_quat_xyzw, row_norm
 from ..phases import Phase
 from ..world import StepContext
 
@@ -55,8 +55,7 @@ class StateReadbackSystem(esper.Processor):
             f.acc_enu_m_s2[r] = 0.0
         else:
             f.acc_enu_m_s2[r] = (vel - f.vel_enu_m_s[r]) / ctx.dt_s
-            step = pos - f.pos_enu_m[r]
-            f.odometer_m[r] += np.sqrt(np.einsum("mi,mi->m", step, step))
+            f.odometer_m[r] += row_norm(pos - f.pos_enu_m[r])
         f.pos_enu_m[r] = pos
         f.quat_enu_flu_xyzw[r] = quat
         f.vel_enu_m_s[r] = vel
