@@ -16,7 +16,6 @@ import numpy as np
 
 from ..config.limits import SensorRate
 from ..config.schema import Ge, Le
-from ..frames import R_from_quat_xyzw
 from ..geodesy import LocalTangentPlane
 from ..phases import Phase
 from ..world import StepContext
@@ -57,7 +56,7 @@ class GpsSystem(SensorSystemBase):
         f = ctx.fleet
         rows = np.array([s.row for s in due])
         mounts = np.array([s.spec.mount_xyz_m for s in due], dtype=float)
-        antenna = f.pos_enu_m[rows] + np.einsum("nij,nj->ni", R_from_quat_xyzw(f.quat_enu_flu_xyzw[rows]), mounts)
+        antenna = f.pos_enu_m[rows] + np.einsum("nij,nj->ni", f.R_enu_flu[rows], mounts)
         for k, s in enumerate(due):
             spec: GpsSensor = s.spec
             if spec.horizontal_noise_std_m or spec.vertical_noise_std_m:

@@ -67,7 +67,7 @@ class ImuSystem(SensorSystemBase):
         rows = np.array([s.row for s in due])
         q_mount = np.array([s.spec.mount_quat_xyzw() for s in due])
         R_mount = R_from_quat_xyzw(q_mount)                                    # sensor axes in body
-        R_body = R_from_quat_xyzw(f.quat_enu_flu_xyzw[rows])                    # body in ENU
+        R_body = f.R_enu_flu[rows]                                             # body in ENU
         specific_enu = f.acc_enu_m_s2[rows] - np.asarray(ctx.services.gravity_enu_m_s2)
         specific_body = np.einsum("nji,nj->ni", R_body, specific_enu)           # R_body^T f
         accel = np.einsum("nji,nj->ni", R_mount, specific_body)

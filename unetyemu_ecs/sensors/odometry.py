@@ -14,7 +14,6 @@ from typing import Any
 import numpy as np
 
 from ..config.limits import SensorRate
-from ..frames import R_from_quat_xyzw
 from ..phases import Phase
 from ..world import StepContext
 from .base import MountedSensor, SensorSpec, SensorSystemBase
@@ -44,7 +43,7 @@ class OdometrySystem(SensorSystemBase):
         f = ctx.fleet
         rows = np.array([s.row for s in due])
         pos, quat, rate = f.pos_enu_m[rows], f.quat_enu_flu_xyzw[rows], f.rate_flu_rad_s[rows]     # copies
-        v_body = np.einsum("nji,nj->ni", R_from_quat_xyzw(quat), f.vel_enu_m_s[rows])
+        v_body = np.einsum("nji,nj->ni", f.R_enu_flu[rows], f.vel_enu_m_s[rows])
         for k, s in enumerate(due):
             self.publish(ctx, s, time_s, build=partial(odometry_message, time_s, s.frame_id, f"{s.vehicle}/base_link",
                                                        pos[k], quat[k], v_body[k], rate[k]))

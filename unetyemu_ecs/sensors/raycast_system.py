@@ -56,7 +56,7 @@ class RaycastSensorSystem(SensorSystemBase):
         """Position (N, 3) and attitude (N, 3, 3) in ENU of each sensor frame."""
         f = ctx.fleet
         rows = np.array([s.row for s in due])
-        R_body = R_from_quat_xyzw(f.quat_enu_flu_xyzw[rows])
+        R_body = f.R_enu_flu[rows]
         mounts = np.array([s.spec.mount_xyz_m for s in due], dtype=float)
         R_mount = R_from_quat_xyzw(np.array([s.spec.mount_quat_xyzw() for s in due]))
         return f.pos_enu_m[rows] + np.einsum("nij,nj->ni", R_body, mounts), np.einsum("nij,njk->nik", R_body, R_mount)

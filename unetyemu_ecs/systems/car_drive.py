@@ -17,7 +17,6 @@ from ..components.body import RigidBody
 from ..components.car import CarDynamics
 from ..control.car import bicycle_limit_rad, steer_limit_rad
 from ..control.layers import CarChassis, CarCommand, CarSetpoint, CarState
-from ..frames import R_from_quat_xyzw
 from ..phases import Phase
 from ..world import StepContext
 from .car_state import DriveMode
@@ -52,7 +51,7 @@ class DriveControllerSystem(ControllerSystem):
         f = ctx.fleet
         r = self.rows
         dyn = self.dyn
-        fwd = R_from_quat_xyzw(f.quat_enu_flu_xyzw[r])[:, :, 0]
+        fwd = f.R_enu_flu[r, :, 0]
         v = np.einsum("ni,ni->n", f.vel_enu_m_s[r], fwd)
         f.car_speed_m_s[r] = v
         mode = f.drive_mode[r]
