@@ -35,6 +35,7 @@ from ..phases import Phase
 from ..transport.api import CommandStatus
 from ..world import StepContext
 from .commands import Refusal
+from .fleet_system import FleetSystem
 from .flight_state import (LANDED_IN_AIR, LANDED_ON_GROUND, LANDED_UNDEFINED, MISSION_RUNNING, MODE_DISARMED,
                            NAV_MANUAL, NAV_MISSION, NAV_OFFBOARD, NAV_POSCTL, NAV_TAKEOFF, ArmBlock, FlightMode,
                            LandedState, MissionState, NavState, Route, set_route)
@@ -624,7 +625,7 @@ def arm_blocks(f: Any, rows: np.ndarray, fence_why: list[str],
 
 
 # -- land detector ---------------------------------------------------------------------------
-class LandDetectorSystem(esper.Processor):
+class LandDetectorSystem(FleetSystem):
     """Landed state of every drone from contact and motion (PX4's multicopter land detector).
 
     Phase: STATE (after the read-back). Reads: pose, velocity, body rates, payload_entity, nav_state,
@@ -633,22 +634,13 @@ class LandDetectorSystem(esper.Processor):
 
     phase = Phase.STATE
     order = 30
+    requires = (RigidBody, NavRuntime, FlightParams)
 
-    def __init__(self) -> None:
-        self._seen: tuple[Any, int] = (None, -1)       # the query answer and fleet version the rows are of
-        self._rows = np.empty(0, dtype=np.intp)
-
-    def process(self, ctx: StepContext) -> None:
+    def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
         t = ctx.sim_time_s + ctx.dt_s           # the state read back is the state at the end of this step
-        drones = esper.get_components(FleetSlot, RigidBody, NavRuntime, FlightParams)
-        if not drones:
-            return
         contact = ctx.physics.contact_map()     # one query for the whole world
-        if self._seen[0] is not drones or self._seen[1] != f.version:   # the ECS or the fleet changed
-            self._seen = (drones, f.version)
-            self._rows = np.array([slot.row for _, (slot, _, _, _) in drones], dtype=np.intp)
-        rows = self._rows
+        rows = self.rows
         vel = f.vel_enu_m_s[rows]
         speed_z = np.abs(vel[:, 2]).tolist()
         speed_xy = np.hypot(vel[:, 0], vel[:, 1]).tolist()
@@ -657,7 +649,7 @@ class LandDetectorSystem(esper.Processor):
         landed = f.landed_state[rows].tolist()
         states = list(landed)                   # the new landed states, written back at once
         modes, nav_states = f.flight_mode[rows].tolist(), f.nav_state[rows].tolist()
-        for k, (ent, (_slot, body, nav, params)) in enumerate(drones):
+        for k, (ent, body, nav, params) in enumerate(zip(self.entities.tolist(), *self.components)):
             touching = contact.get(body.body_id, _NOTHING)
             if packages[k] >= 0:
                 carried = esper.component_for_entity(packages[k], RigidBody).body_id
@@ -703,7 +695,7 @@ class LandDetectorSystem(esper.Processor):
 
 
 # -- navigator -------------------------------------------------------------------------------
-class NavigatorSystem(esper.Processor):
+class NavigatorSystem(FleetSystem):
     """Home, the navigator-flown modes (TAKEOFF, LAND, RTL) and auto-disarm.
 
     Phase: MISSION (after the mission and emergency landing). Reads: pose, arrived, landed_state,
@@ -713,35 +705,27 @@ class NavigatorSystem(esper.Processor):
 
     phase = Phase.MISSION
     order = 20
+    requires = (NavRuntime, FlightParams)
 
-    def __init__(self) -> None:
-        self._seen: tuple[Any, int] = (None, -1)       # the query answer and fleet version the caches are of
-        self._rows = np.empty(0, dtype=np.intp)
-        self._limits: tuple[np.ndarray, np.ndarray] = (np.empty(0), np.empty(0))
+    def gather(self, ctx: StepContext) -> None:
+        self._limits = arming_limits(ctx.fleet)       # from the battery and bay components: kept with the rows
 
-    def process(self, ctx: StepContext) -> None:
+    def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
         t = ctx.sim_time_s
-        drones = esper.get_components(FleetSlot, NavRuntime, FlightParams)
-        if not drones:
-            return
-        if self._seen[0] is not drones or self._seen[1] != f.version:   # the ECS or the fleet changed
-            self._seen = (drones, f.version)
-            self._rows = np.array([slot.row for _, (slot, _, _) in drones], dtype=np.intp)
-            self._limits = arming_limits(f)
-        rows = self._rows
+        rows = self.rows
+        drones = list(zip(self.entities.tolist(), *self.components))      # (entity, NavRuntime, FlightParams)
         unset = rows[~f.home_set[rows]]
         if unset.size:
             f.home_enu_m[unset] = f.pos_enu_m[unset]
             f.home_set[unset] = True
-        fenced = [fence_active(nav, params) for _, (_, nav, params) in drones]
-        why = [fence_breach(f, slot.row, nav, params) if on else ""
-               for on, (_, (slot, nav, params)) in zip(fenced, drones)]
+        fenced = [fence_active(nav, params) for _, nav, params in drones]
+        why = [fence_breach(f, row, nav, params) if on else ""
+               for on, row, (_, nav, params) in zip(fenced, rows.tolist(), drones)]
         f.arm_block[rows] = arm_blocks(f, rows, why, self._limits)
         modes, nav_states = f.flight_mode[rows].tolist(), f.nav_state[rows].tolist()
         grounded = (f.landed_state[rows] == LANDED_ON_GROUND).tolist()     # only the land detector writes it
-        for k, (ent, (slot, nav, params)) in enumerate(drones):
-            row = slot.row
+        for k, (row, (ent, nav, params)) in enumerate(zip(rows.tolist(), drones)):
             if modes[k] == MODE_DISARMED:
                 if nav.mode:
                     _set_mode(nav, "", "", t, None)
