@@ -29,7 +29,7 @@ from ..world import StepContext
 from .base import MountedSensor, SensorSpec
 from .messages import header, msg_type
 from .raycast import MOVING_BODY
-from .raycast_system import MAX_PLANS, RaycastSensorSystem
+from .raycast_system import RaycastSensorSystem, per_sensor_set
 
 # Reflectivity per scene class (ours: orders of magnitude of concrete, asphalt, vegetation), and bodies.
 REFLECTIVITY = {SceneClass.GROUND: 0.3, SceneClass.ROAD: 0.15, SceneClass.SIDEWALK: 0.35,
@@ -152,18 +152,13 @@ class LidarSystem(RaycastSensorSystem):
     def _per_ray(self, due: list[MountedSensor]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Of every ray of ``due`` cast together: its ring as the point's last 4 bytes (uint32 little-endian:
         the uint16 ring, then 2 bytes of zero padding) and its kept range [min, max] (float32, m)."""
-        key = tuple(s.entity for s in due)
-        found = self._ray_limits.get(key)
-        if found is None:
-            if len(self._ray_limits) >= MAX_PLANS:
-                del self._ray_limits[next(iter(self._ray_limits))]      # the oldest
+        def make() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             sizes = [len(self._patterns[s.entity][1]) for s in due]
-            rings = np.concatenate([self._patterns[s.entity][1] for s in due]).astype("<u4")
-            found = (rings,
-                     np.repeat(np.array([s.spec.min_range_m for s in due], dtype=np.float32), sizes),
-                     np.repeat(np.array([s.spec.max_range_m for s in due], dtype=np.float32), sizes))
-            self._ray_limits[key] = found
-        return found
+            return (np.concatenate([self._patterns[s.entity][1] for s in due]).astype("<u4"),
+                    np.repeat(np.array([s.spec.min_range_m for s in due], dtype=np.float32), sizes),
+                    np.repeat(np.array([s.spec.max_range_m for s in due], dtype=np.float32), sizes))
+
+        return per_sensor_set(self._ray_limits, due, make)
 
 
 __all__ = ["LidarSensor", "LidarSystem", "pointcloud2", "pointcloud2_of_points", "ray_directions_sensor", "read_points"]

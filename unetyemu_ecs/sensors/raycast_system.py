@@ -4,6 +4,7 @@ every due sensor's rays (:mod:`unetyemu_ecs.sensors.raycast`)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -104,30 +105,39 @@ class RaycastSensorSystem(SensorSystemBase):
         return hits, out, plan.slices
 
     def _plan(self, due: list[MountedSensor], rays: list[tuple[np.ndarray, np.ndarray]]) -> "CastPlan":
-        """The stacked, per-ray arrays of casting ``due`` together (the last MAX_PLANS sets of sensors are kept
-        until the sensors are gathered again: sensors at different rates are due in a few recurring sets)."""
-        key = tuple(s.entity for s in due)
-        plan = self._plans.get(key)
-        if plan is None:
-            if len(self._plans) >= MAX_PLANS:
-                del self._plans[next(iter(self._plans))]        # the oldest
-            sizes = [len(d) for d, _ in rays]
-            bounds = np.concatenate([[0], np.cumsum(sizes)])
-            starts = [ray_starts(exit_m) for _, exit_m in rays]
-            same = all(d is rays[0][0] or np.array_equal(d, rays[0][0]) for d, _ in rays)
-            start_static = np.concatenate([a for a, _ in starts]).astype(np.float32)
-            dirs_sensor = np.vstack([d for d, _ in rays]).astype(np.float32)
-            plan = CastPlan(
-                dirs_sensor=dirs_sensor,
-                basis=np.hstack([dirs_sensor, start_static[:, None] * dirs_sensor, np.ones((len(dirs_sensor), 1),
-                                                                                          dtype=np.float32)]),
-                start_static_m=start_static,
-                start_dynamic_m=np.concatenate([b for _, b in starts]).astype(np.float32),
-                slices=[slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])],
-                max_range_m=np.array([getattr(s.spec, "max_range_m", np.inf) for s in due], dtype=float),
-                bins=direction_bins(rays[0][0]) if same and sizes[0] > 0 else None)
-            self._plans[key] = plan
-        return plan
+        """The stacked, per-ray arrays of casting ``due`` together (:func:`per_sensor_set`)."""
+        return per_sensor_set(self._plans, due, lambda: _make_plan(due, rays))
+
+
+def per_sensor_set(cache: dict[tuple[int, ...], Any], due: list[MountedSensor], make: Callable[[], Any]) -> Any:
+    """What ``make`` builds for the set of sensors ``due``, kept in ``cache`` for the last MAX_PLANS sets
+    (sensors at different rates are due in a few recurring sets; the owner empties the cache when it gathers
+    its sensors again)."""
+    key = tuple(s.entity for s in due)
+    found = cache.get(key)
+    if found is None:
+        if len(cache) >= MAX_PLANS:
+            del cache[next(iter(cache))]                # the oldest
+        found = cache[key] = make()
+    return found
+
+
+def _make_plan(due: list[MountedSensor], rays: list[tuple[np.ndarray, np.ndarray]]) -> "CastPlan":
+    sizes = [len(d) for d, _ in rays]
+    bounds = np.concatenate([[0], np.cumsum(sizes)])
+    starts = [ray_starts(exit_m) for _, exit_m in rays]
+    same = all(d is rays[0][0] or np.array_equal(d, rays[0][0]) for d, _ in rays)
+    start_static = np.concatenate([a for a, _ in starts]).astype(np.float32)
+    dirs_sensor = np.vstack([d for d, _ in rays]).astype(np.float32)
+    return CastPlan(
+        dirs_sensor=dirs_sensor,
+        basis=np.hstack([dirs_sensor, start_static[:, None] * dirs_sensor,
+                         np.ones((len(dirs_sensor), 1), dtype=np.float32)]),
+        start_static_m=start_static,
+        start_dynamic_m=np.concatenate([b for _, b in starts]).astype(np.float32),
+        slices=[slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])],
+        max_range_m=np.array([getattr(s.spec, "max_range_m", np.inf) for s in due], dtype=float),
+        bins=direction_bins(rays[0][0]) if same and sizes[0] > 0 else None)
 
 
 @dataclass(frozen=True)
@@ -147,4 +157,4 @@ class CastPlan:
     bins: DirectionBins | None
 
 
-__all__ = ["MAX_PLANS", "CastPlan", "RaycastSensorSystem"]
+__all__ = ["MAX_PLANS", "CastPlan", "RaycastSensorSystem", "per_sensor_set"]
