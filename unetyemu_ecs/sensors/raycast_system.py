@@ -53,14 +53,12 @@ class RaycastSensorSystem(SensorSystemBase):
         dirs_body = dirs_sensor @ R_from_quat_xyzw(sensor.spec.mount_quat_xyzw()).T
         return exit_distance_m(np.asarray(sensor.spec.mount_xyz_m, dtype=float), dirs_body, half)
 
-    def sensor_poses(self, ctx: StepContext, due: list[MountedSensor]) -> tuple[np.ndarray, np.ndarray]:
-        """Position (N, 3) and attitude (N, 3, 3) in ENU of each sensor frame."""
+    def sensor_poses(self, ctx: StepContext, plan: "CastPlan") -> tuple[np.ndarray, np.ndarray]:
+        """Position (N, 3) and attitude (N, 3, 3) in ENU of the frame of each sensor of ``plan``."""
         f = ctx.fleet
-        rows = np.array([s.row for s in due])
-        R_body = f.R_enu_flu[rows]
-        mounts = np.array([s.spec.mount_xyz_m for s in due], dtype=float)
-        R_mount = R_from_quat_xyzw(np.array([s.spec.mount_quat_xyzw() for s in due]))
-        return f.pos_enu_m[rows] + np.einsum("nij,nj->ni", R_body, mounts), np.einsum("nij,njk->nik", R_body, R_mount)
+        R_body = f.R_enu_flu[plan.rows]
+        return (f.pos_enu_m[plan.rows] + np.einsum("nij,nj->ni", R_body, plan.mount_xyz_m),
+                np.einsum("nij,njk->nik", R_body, plan.R_body_sensor))
 
     def moving_boxes(self, ctx: StepContext) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         f = ctx.fleet
@@ -74,14 +72,9 @@ class RaycastSensorSystem(SensorSystemBase):
         Returns the hits, the rays as cast (sum M, 6) float32: where each starts in the static scene and its
         unit direction, world frame) and each sensor's slice of them.
         """
-        pos, R = self.sensor_poses(ctx, due)
-        boxes = self.moving_boxes(ctx)
         plan = self._plan(due, rays)
-        rows = np.array([s.row for s in due], dtype=np.intp)
-        own = np.searchsorted(self._body_rows, rows)
-        found = own < len(self._body_rows)
-        found[found] = self._body_rows[own[found]] == rows[found]
-        own = np.where(found, own, -1)                  # each sensor's own body among the moving boxes
+        pos, R = self.sensor_poses(ctx, plan)
+        boxes = self.moving_boxes(ctx)
         # every ray's start point and direction in one product: [d, start d, 1] @ [[0, R^T], [R^T, 0], [p, 0]]
         to_world = np.zeros((len(due), 7, 6), dtype=np.float32)
         R_t = R.transpose(0, 2, 1)
@@ -94,19 +87,19 @@ class RaycastSensorSystem(SensorSystemBase):
             k = len(out) // n
             np.matmul(plan.basis.reshape(n, k, 7), to_world, out=out.reshape(n, k, 6))
             dynamic = moving_body_candidates_binned(pos, R, out[:, 3:], plan.bins, plan.max_range_m, boxes[0],
-                                                    self._body_radius, own)
+                                                    self._body_radius, plan.own_box)
         else:
             for j, sl in enumerate(plan.slices):
                 np.matmul(plan.basis[sl], to_world[j], out=out[sl])
             dynamic = np.concatenate([sl.start + moving_body_candidates(pos[j], out[sl, 3:], plan.max_range_m[j],
-                                                                        boxes[0], self._body_radius, int(own[j]))
+                                                                        boxes[0], self._body_radius, int(plan.own_box[j]))
                                       for j, sl in enumerate(plan.slices)]).astype(np.intp)
         hits = self.world.cast_prepared(out, plan.start_static_m, plan.start_dynamic_m, boxes, dynamic)
         return hits, out, plan.slices
 
     def _plan(self, due: list[MountedSensor], rays: list[tuple[np.ndarray, np.ndarray]]) -> "CastPlan":
         """The stacked, per-ray arrays of casting ``due`` together (:func:`per_sensor_set`)."""
-        return per_sensor_set(self._plans, due, lambda: _make_plan(due, rays))
+        return per_sensor_set(self._plans, due, lambda: _make_plan(due, rays, self._body_rows))
 
 
 def per_sensor_set(cache: dict[tuple[int, ...], Any], due: list[MountedSensor], make: Callable[[], Any]) -> Any:
@@ -122,7 +115,12 @@ def per_sensor_set(cache: dict[tuple[int, ...], Any], due: list[MountedSensor], 
     return found
 
 
-def _make_plan(due: list[MountedSensor], rays: list[tuple[np.ndarray, np.ndarray]]) -> "CastPlan":
+def _make_plan(due: list[MountedSensor], rays: list[tuple[np.ndarray, np.ndarray]], body_rows: np.ndarray
+               ) -> "CastPlan":
+    rows = np.array([s.row for s in due], dtype=np.intp)
+    own = np.searchsorted(body_rows, rows)
+    found = own < len(body_rows)
+    found[found] = body_rows[own[found]] == rows[found]
     sizes = [len(d) for d, _ in rays]
     bounds = np.concatenate([[0], np.cumsum(sizes)])
     starts = [ray_starts(exit_m) for _, exit_m in rays]
@@ -130,6 +128,10 @@ def _make_plan(due: list[MountedSensor], rays: list[tuple[np.ndarray, np.ndarray
     start_static = np.concatenate([a for a, _ in starts]).astype(np.float32)
     dirs_sensor = np.vstack([d for d, _ in rays]).astype(np.float32)
     return CastPlan(
+        rows=rows,
+        own_box=np.where(found, own, -1),
+        mount_xyz_m=np.array([s.spec.mount_xyz_m for s in due], dtype=float).reshape(-1, 3),
+        R_body_sensor=R_from_quat_xyzw(np.array([s.spec.mount_quat_xyzw() for s in due])).reshape(-1, 3, 3),
         dirs_sensor=dirs_sensor,
         basis=np.hstack([dirs_sensor, start_static[:, None] * dirs_sensor,
                          np.ones((len(dirs_sensor), 1), dtype=np.float32)]),
@@ -142,12 +144,21 @@ def _make_plan(due: list[MountedSensor], rays: list[tuple[np.ndarray, np.ndarray
 
 @dataclass(frozen=True)
 class CastPlan:
-    """How a set of sensors is cast together: their rays stacked in the sensor frames (sum M, 3) float32, and as
-    rows ``[d, start_static d, 1]`` (sum M, 7) that one product per sensor takes to the world (a matrix
-    product writes Open3D's interleaved rows 5x faster than element-wise numpy into them), the start
-    distances of each ray in the static and moving-body scenes (float32), each sensor's slice and range,
-    and the direction bins of their shared pattern (None when the patterns differ)."""
+    """How a set of sensors is cast together (all of it fixed until the sensors are gathered again):
 
+    - their fleet rows, the index of each one's own vehicle among the moving boxes (-1: none), their
+      mounts (position in base_link [m], rotation base_link <- sensor);
+    - their rays stacked in the sensor frames (sum M, 3) float32, and as rows ``[d, start_static d, 1]``
+      (sum M, 7) that one product per sensor takes to the world (a matrix product writes Open3D's
+      interleaved rows 5x faster than element-wise numpy into them);
+    - the start distances of each ray in the static and moving-body scenes (float32), each sensor's
+      slice and range, and the direction bins of their shared pattern (None when the patterns differ).
+    """
+
+    rows: np.ndarray
+    own_box: np.ndarray
+    mount_xyz_m: np.ndarray
+    R_body_sensor: np.ndarray
     dirs_sensor: np.ndarray
     basis: np.ndarray
     start_static_m: np.ndarray
