@@ -61,7 +61,6 @@ class TransformSystem(FleetSystem):
         super().__init__()
         self._static_sent = False
         self._next_s = 0.0
-        self._vehicles: list[tuple[int, str]] = []
         self._vehicle_rows = np.empty(0, dtype=np.intp)
         self._frames: tuple[tuple[str, str], ...] = ()        # (odom, base_link) of each vehicle
         self._static: list[tuple[str, str, tuple[float, ...], tuple[float, ...]]] = []  # parent, child, xyz, q_xyzw
@@ -70,23 +69,24 @@ class TransformSystem(FleetSystem):
         vehicles = [(row, int(ent), ident.name) for row, ent, ident in zip(self.rows.tolist(), self.entities,
                                                                           self.components[0])
                     if ident.kind != "package"]
-        self._vehicles = [(row, name) for row, _, name in vehicles]
-        self._vehicle_rows = np.array([row for row, _ in self._vehicles], dtype=np.intp)
-        self._frames = tuple((f"{name}/odom", f"{name}/base_link") for _, name in self._vehicles)
+        self._vehicle_rows = np.array([row for row, _, _ in vehicles], dtype=np.intp)
+        self._frames = tuple((f"{name}/odom", f"{name}/base_link") for _, _, name in vehicles)
         static = self._static_tree(vehicles)
         if static != self._static:                     # new vehicles or sensors: send the static tree again
             self._static = static
             self._static_sent = False
 
     def update(self, ctx: StepContext) -> None:
-        if not self._vehicles:
+        if not self._vehicle_rows.size:
             return
         f = ctx.fleet
         time_s = ctx.sim_time_s + ctx.dt_s
-        TFMessage = msg_type("tf2_msgs/msg/TFMessage")
         if not self._static_sent:
-            tfs = [_transform(time_s, parent, child, np.array(xyz), np.array(q)) for parent, child, xyz, q in self._static]
-            ctx.services.sensors.put(SensorSample(time_s, "", "tf_static", "/tf_static", TFMessage(transforms=tfs)))
+            frames = tuple((parent, child) for parent, child, _, _ in self._static)
+            xyz = np.array([t[2] for t in self._static]).reshape(-1, 3)
+            q_xyzw = np.array([t[3] for t in self._static]).reshape(-1, 4)
+            ctx.services.sensors.put(SensorSample(time_s, "", "tf_static", "/tf_static",
+                                                  tf_message(time_s, frames, xyz, q_xyzw)))
             self._static_sent = True
         if time_s + 1e-9 >= self._next_s:
             self._next_s += (np.floor((time_s + 1e-9 - self._next_s) * TF_HZ) + 1) / TF_HZ
