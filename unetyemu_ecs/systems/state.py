@@ -5,7 +5,6 @@ from __future__ import annotations
 import esper
 import numpy as np
 
-from ..fleet import row_selector
 from ..frames import R_from_quat_xyzw, row_norm
 from ..phases import Phase
 from ..world import StepContext
@@ -27,8 +26,6 @@ class StateReadbackSystem(esper.Processor):
 
     def __init__(self) -> None:
         self._seen_version = -1
-        self._rows = np.empty(0, dtype=np.intp)
-        self._sel: slice | np.ndarray = self._rows
         self._bodies = np.empty(0, dtype=np.int64)
 
     def prime(self, ctx: StepContext) -> None:
@@ -41,13 +38,11 @@ class StateReadbackSystem(esper.Processor):
     def _read(self, ctx: StepContext, first: bool) -> None:
         f = ctx.fleet
         if f.version != self._seen_version:
-            self._rows = f.rows.copy()
-            self._sel = row_selector(self._rows)
-            self._bodies = f.body_id[self._rows].copy()
+            self._bodies = f.body_id[f.rows].copy()
             self._seen_version = f.version
             first = True
-        r = self._sel
-        if self._rows.size == 0:
+        r = f.active                                     # the active rows (a slice when contiguous)
+        if self._bodies.size == 0:
             return
         state = ctx.physics.read_states(self._bodies)                # (M, 13)
         pos, quat, vel, rate = state[:, 0:3], state[:, 3:7], state[:, 7:10], state[:, 10:13]
