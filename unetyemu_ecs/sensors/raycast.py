@@ -82,21 +82,14 @@ def moving_body_candidates(origin_m: np.ndarray, dirs_world: np.ndarray, max_ran
     """Indices of the rays (from ``origin_m`` along unit ``dirs_world`` (M, 3)) that can meet a moving body
     within ``max_range_m``: those whose line passes within a body's bounding sphere (centres (B, 3),
     radii (B,)) ahead of the origin. Body ``exclude`` (the sensor's own vehicle, which its rays leave and,
-    being convex, never meet again) is left out. Conservative: every ray that hits a body is kept."""
-    v = centers_m - origin_m                                              # (B, 3)
-    dist = np.linalg.norm(v, axis=1)
-    near = dist - radii_m <= max_range_m
-    if 0 <= exclude < len(near):
-        near[exclude] = False
-    if not near.any():
-        return np.empty(0, dtype=np.intp)
-    v, r, dist = v[near], radii_m[near], dist[near]
-    if np.any(dist <= r):                                                # inside a body's sphere: every ray
-        return np.arange(len(dirs_world))
-    # a ray from outside a sphere meets it iff its angle to the centre is at most asin(r / dist), i.e. its
-    # projection on the centre's direction reaches the tangent point: along >= sqrt(dist^2 - r^2)
-    along = dirs_world @ v.T                                              # (M, K)
-    return np.flatnonzero((along >= np.sqrt(dist ** 2 - r ** 2)).any(axis=1))
+    being convex, never meet again) is left out. Conservative: every ray that hits a body is kept.
+
+    One sensor of :func:`moving_body_candidates_binned`, its rays in one cone that holds every direction."""
+    m = len(dirs_world)
+    every_direction = DirectionBins(np.arange(m), np.array([0, m]), np.array([[1.0, 0.0, 0.0]]), np.array([np.pi]))
+    return moving_body_candidates_binned(np.asarray(origin_m, dtype=float).reshape(1, 3), np.eye(3)[None], dirs_world,
+                                         every_direction, np.array([max_range_m]), centers_m, radii_m,
+                                         np.array([exclude if 0 <= exclude < len(centers_m) else -1]))
 
 
 @dataclass(frozen=True)
