@@ -71,9 +71,28 @@ def test_sticks_map_to_setpoints_with_the_documented_signs_and_limits():
     vz, roll, pitch, yaw_rate = manual_to_setpoints(stick, np.full(3, 0.7), np.full(3, 8.0), np.full(3, 5.0),
                                                     np.full(3, np.pi / 2))
     assert_allclose(vz, [8.0, -5.0, 0.0])
-    assert_allclose(pitch, [0.7, -0.35, 0.0])     # +1 = forward = nose down
-    assert_allclose(roll, [0.7, -0.35, 0.0])      # +1 = right = right side down
+    assert pitch[0] > 0 and roll[0] > 0           # +1 = forward = nose down, +1 = right = right side down
+    assert pitch[1] < 0 and roll[1] < 0
     assert_allclose(yaw_rate, [np.pi / 2, -np.pi / 2, 0.0])
+    one_axis = np.array([[0.0, 1.0, 0.0, 0.0], [0.0, 0.0, -0.5, 0.0]])
+    _, roll, pitch, _ = manual_to_setpoints(one_axis, np.full(2, 0.7), np.full(2, 8.0), np.full(2, 5.0), np.ones(2))
+    assert_allclose(pitch, [0.7, 0.0], atol=1e-12)   # one stick alone: its angle is stick * lim_tilt
+    assert_allclose(roll, [0.0, -0.35], atol=1e-12)
+
+
+def total_tilt_rad(roll: np.ndarray, pitch: np.ndarray) -> np.ndarray:
+    """Angle between the body z axis and the vertical for roll-then-pitch Euler angles."""
+    return np.arccos(np.cos(roll) * np.cos(pitch))
+
+
+def test_full_pitch_and_full_roll_together_tilt_by_the_limit_not_more():
+    lim = np.deg2rad(np.full(3, 45.0))
+    sticks = np.array([[1.0, 1.0, 1.0, 0.0], [1.0, -1.0, 1.0, 0.0], [1.0, 0.5, 0.5, 0.0]])
+    _, roll, pitch, _ = manual_to_setpoints(sticks, lim, np.full(3, 8.0), np.full(3, 5.0), np.ones(3))
+    tilt = total_tilt_rad(roll, pitch)
+    assert_allclose(tilt[:2], lim[:2], rtol=1e-9)                    # was ~60 deg on a 45 deg preset
+    assert_allclose(tilt[2], np.hypot(0.5, 0.5) * lim[2], rtol=1e-9)   # length of the stick vector x limit
+    assert_allclose(abs(roll[0]), abs(pitch[0]), rtol=0.2)            # diagonal: both axes share the tilt
 
 
 def test_velocity_setpoint_cruises_at_the_limit_far_away_and_brakes_as_sqrt_2ad_near_the_end():

@@ -93,15 +93,24 @@ def manual_to_setpoints(stick: np.ndarray, lim_tilt_rad: np.ndarray, lim_climb_m
     """Map teleop sticks ``[throttle, pitch, roll, yaw]`` (N, 4) in [-1, 1] to stabilizer setpoints.
 
     - throttle: vertical speed, +1 climbs at ``lim_climb``, -1 descends at ``lim_descent``, 0 holds;
-    - pitch: +1 = forward = nose down = ``+lim_tilt``;
-    - roll: +1 = move right = right side down = ``+lim_tilt``;
+    - pitch and roll together tilt the thrust axis: +1 pitch = forward = nose down, +1 roll = move
+      right = right side down. The (pitch, roll) stick is a vector (clipped to the unit circle) whose
+      direction is the direction of the tilt and whose length times ``lim_tilt`` is the *total* tilt,
+      as PX4's stabilized mode does, so full pitch and full roll together tilt ``lim_tilt``
+      diagonally, not ~60 deg; one stick alone gives its Euler angle ``stick * lim_tilt`` exactly;
     - yaw: +1 = turn left (CCW) at ``lim_yaw_rate``.
 
     Returns ``(vz_sp_m_s, roll_sp_rad, pitch_sp_rad, yaw_rate_sp_rad_s)``, each (N,).
     """
     s = np.clip(np.nan_to_num(np.asarray(stick, dtype=float).reshape(-1, 4)), -1.0, 1.0)
     vz_sp = np.where(s[:, 0] >= 0.0, s[:, 0] * lim_climb_m_s, s[:, 0] * lim_descent_m_s)
-    return vz_sp, s[:, 2] * lim_tilt_rad, s[:, 1] * lim_tilt_rad, s[:, 3] * lim_yaw_rate_rad_s
+    length = np.hypot(s[:, 1], s[:, 2])
+    tilt = np.minimum(length, 1.0) * lim_tilt_rad                        # total tilt [rad]
+    # thrust axis along (tan(tilt) * direction, 1) in the heading frame (forward, right, up)
+    k = np.tan(tilt) / np.maximum(length, 1e-12)
+    pitch = np.arctan(k * s[:, 1])
+    roll = np.arctan(k * s[:, 2] * np.cos(pitch))
+    return vz_sp, roll, pitch, s[:, 3] * lim_yaw_rate_rad_s
 
 
 def angle_rate_pd_law(sp: AttitudeSetpoint, state: DroneState, airframe: Airframe, params: StabilizerGains,
