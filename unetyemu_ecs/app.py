@@ -27,6 +27,7 @@ from .sensors.tf import TransformSystem
 from .systems.blackboard import declare_shared_arrays
 from .systems.car_state import DriveMode
 from .systems.controllers import controller_system
+from .systems.fleet_system import FleetSystem
 from .systems.commands import InboxSystem, UnclaimedCommandSystem
 from .systems.impacts import ImpactMonitorSystem
 from .systems.outputs import TrajectoryLogSystem
@@ -193,6 +194,8 @@ class Simulation(NavigationApi):
             self.physics.finish_loading()
             with self.ecs.active():
                 self._state.prime(self._context())
+                for system in self._fleet_systems:   # their state at t = 0 (battery full, power drawn)
+                    system.refresh(self._context())
                 if self._log is not None:
                     self._log.write_rows(self._context(), 0.0)
                 self._start_transports(world)
@@ -230,6 +233,7 @@ class Simulation(NavigationApi):
             systems.append(self._log)
         for s in systems:
             self.ecs.add_system(s)
+        self._fleet_systems = [s for s in systems if isinstance(s, FleetSystem)]
 
     def _start_transports(self, world: WorldDefinition) -> None:
         """Create every installed transport enabled for this world and these options, and start each

@@ -56,8 +56,12 @@ class EnergySystem(FleetSystem):
                 f.energy_j[row] = p.initial_soc_frac[k] * self._cap_j[k]
                 f.energy_used_j[row] = 0.0
                 f.soc_frac[row] = p.initial_soc_frac[k]
-                f.power_filt_w[row] = p.p0_w[k]
                 f.charge_power_w[row] = p.charge_power_w[k]
+                power = float(rotor_power_w(f.motor_thrust_n[row:row + 1], self._rho[k:k + 1], self._area[k:k + 1],
+                                            self._eta[k:k + 1]).sum()) + p.p0_w[k]
+                f.power_w[row] = f.power_filt_w[row] = power       # what it draws now (P0 on the ground)
+                f.remaining_time_s[row] = f.energy_j[row] / max(power, 1e-9)
+                f.low_battery[row] = f.soc_frac[row] < self._low[k]
                 self._initialised.add(ent)
 
     def update(self, ctx: StepContext) -> None:
