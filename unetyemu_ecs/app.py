@@ -33,6 +33,7 @@ from .systems.impacts import ImpactMonitorSystem
 from .systems.outputs import TrajectoryLogSystem
 from .systems.physics import PhysicsStepSystem
 from .systems.state import StateReadbackSystem
+from .systems.wind import WindFieldSystem
 from .config.limits import MAX_DURATION_S
 from .mission import MissionSpec
 from .navigation.commands_api import NavigationApi
@@ -180,7 +181,8 @@ class Simulation(NavigationApi):
         self.inbox = Inbox()
         self.services = SimServices(world.layout, self.inbox, self._entities, [],
                                     gravity_enu_m_s2=tuple(spec.gravity_m_s2),
-                                    origin=GeodeticOrigin(spec.origin.lat_deg, spec.origin.lon_deg, spec.origin.alt_m))
+                                    origin=GeodeticOrigin(spec.origin.lat_deg, spec.origin.lon_deg, spec.origin.alt_m),
+                                    air_density_kg_m3=spec.air_density_kg_m3())
         self.ecs = EcsWorld(label=world.name)
         self.physics: PhysicsClient | None = None
         self._blas_limit = _limit_blas_threads(blas_threads)
@@ -224,6 +226,8 @@ class Simulation(NavigationApi):
         systems += [cls() for cls in classes]
         in_use = dict.fromkeys(name for ent in world.entities for name, _params in ent.controllers.values())
         systems += [controller_system(name, world.registry.controller_entry(name).spec) for name in in_use]
+        if world.spec.world.wind is not None:
+            systems.append(WindFieldSystem(world.spec.world.wind, world.spec.world.seed))
         for key, cfg in world.systems.items():
             systems.append(world.registry.system_entry(key).spec.system(cfg))
         if self.out_dir is not None:

@@ -51,6 +51,7 @@ class SimServices:
     sensors : sensor messages (newest per vehicle and sensor; this step's for publishers)
     gravity_enu_m_s2 : the world's gravity vector
     origin : the world's geodetic origin (WGS84) of the ENU frame
+    air_density_kg_m3 : the world's air density (ISA at the origin unless the world file overrides it)
     """
 
     layout: SceneLayout
@@ -62,6 +63,7 @@ class SimServices:
     sensors: SensorOutputs = field(default_factory=_sensor_outputs)
     gravity_enu_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.81)
     origin: GeodeticOrigin | None = None
+    air_density_kg_m3: float = 1.225
     raycast: Any = None          # the RaycastWorld of LiDARs and cameras, built by the first that needs it
     camera_casts: dict[Any, Any] = field(default_factory=dict)   # this step's camera frames, shared (sensors.camera)
     _mesh: Any = None

@@ -211,7 +211,7 @@ def test_plugins_shows_what_the_presets_give_instead_of_required():
     res = unetyemu("plugins")
     motors = res.stdout[res.stdout.index("  motors "):]
     line = next(l for l in motors.splitlines() if "max_thrust_per_motor_n" in l)
-    assert "per preset:" in line and "small 20.0" in line and "(required)" not in line
+    assert "per preset:" in line and "small 30.0" in line and "(required)" not in line
     energy = res.stdout[res.stdout.index("  energy "):]
     assert "battery_wh: number = 500.0 (from the vehicle preset)" in energy
 

@@ -20,13 +20,13 @@ from unetyemu_ecs.components.flight import EnergyModel
 from unetyemu_ecs.sensors.imu import ImuSensor
 
 G = 9.81
-RHO = 1.225                       # sea-level air [kg/m^3], AeroDrag's default
+RHO = 1.225                       # sea-level air [kg/m^3], set as the world's air below
 BOX_KG, BOX_AREA_M2, BOX_CD = 0.5, 0.16, 1.0
 
 # A 0.5 kg, 40 cm box 30 m up with no drag, and a second box resting on the ground that has
 # aero_drag (so that the drag system is part of the world).
 FALL_WORLD = f"""
-world: {{name: queries, physics_hz: 240, seed: 3}}
+world: {{name: queries, physics_hz: 240, seed: 3, air: {{density_kg_m3: 1.225}}}}
 scene: {{generator: none, ground_size_m: 60}}
 packages:
   - name: box

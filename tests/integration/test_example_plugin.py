@@ -16,7 +16,7 @@ from ..conftest import REPO_ROOT, pip_install_plugin, run_python_with_site
 PLUGIN_DIR = REPO_ROOT / "plugins" / "wind_gust"
 
 WINDY_WORLD = """
-world: {name: windy, physics_hz: 240, seed: 3}
+world: {name: windy, physics_hz: 240, seed: 3, air: {density_kg_m3: 1.225}}   # sea-level air
 scene: {generator: none}
 systems:
   wind_gust: {mean_speed_m_s: 8.0, toward_deg: 90.0, gust_amplitude_m_s: 0.0}

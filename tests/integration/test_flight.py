@@ -13,6 +13,7 @@ import pytest
 
 from unetyemu_ecs import Simulation, load_world_text
 from unetyemu_ecs.components.flight import GuidanceLimits
+from unetyemu_ecs.control.atmosphere import isa_density_kg_m3
 from unetyemu_ecs.control.energy import hover_power_w
 from unetyemu_ecs.control.position import GuidanceGains
 from unetyemu_ecs.scene.primitives import SceneClass
@@ -87,10 +88,19 @@ def test_hover_thrust_equals_weight_within_1_percent(medium_hover):
 
 
 def test_hover_power_equals_the_actuator_disk_formula_within_1_percent(medium_hover):
-    # P = 4 (mg/4)^1.5 / (sqrt(2 rho A) eta) + P0 with rho 1.225, r 0.14 m, eta 0.9, P0 15 W
+    # P = 4 (mg/4)^1.5 / (sqrt(2 rho A) eta) + P0 with rho of the ISA at the world's 650 m (1.150 kg/m^3),
+    # r 0.14 m, eta 0.9, P0 15 W: momentum theory with the real inflow is eq. 4 in hover
     _, m = medium_hover
-    expected = hover_power_w(8.0, 4, G, 1.225, 0.14, 0.90, 15.0)
+    expected = hover_power_w(8.0, 4, G, float(isa_density_kg_m3(650.0)), 0.14, 0.90, 15.0)
     assert np.mean(m["power"]) == pytest.approx(expected, rel=0.01)
+
+
+def test_the_papers_hover_actuator_disk_model_at_sea_level_air_gives_the_papers_hover_power():
+    world = flat_world(drone("d1", components="      energy: {model: hover_actuator_disk, air_density_kg_m3: 1.225}\n"))
+    with Simulation(load_world_text(world)) as sim:
+        hover(sim, "d1", 10.0, 20.0)
+        m = measure(sim, "d1", 3.0)
+    assert np.mean(m["power"]) == pytest.approx(hover_power_w(8.0, 4, G, 1.225, 0.14, 0.90, 15.0), rel=0.01)
 
 
 PICKUP_MISSION = """
@@ -153,7 +163,7 @@ def test_disarmed_drone_on_the_ground_draws_only_p0():
 
 
 def test_no_motor_command_leaves_0_to_f_max_during_aggressive_steps(rng):
-    # GIVEN a small drone (F_max 20 N) hovering
+    # GIVEN a small drone (F_max 30 N) hovering
     with Simulation(load_world_text(flat_world(drone("d1", preset="small")))) as sim:
         hover(sim, "d1", 10.0, 5.0)
         cmds = []
@@ -165,8 +175,8 @@ def test_no_motor_command_leaves_0_to_f_max_during_aggressive_steps(rng):
             cmds.append(measure(sim, "d1", 1.5)["cmd"])
         cmds = np.concatenate(cmds)
     # THEN every motor command stayed within [0, F_max], and the limits were actually reached
-    assert cmds.min() >= 0.0 and cmds.max() <= 20.0
-    assert np.isclose(cmds, 0.0).any() or np.isclose(cmds, 20.0).any()
+    assert cmds.min() >= 0.0 and cmds.max() <= 30.0
+    assert np.isclose(cmds, 0.0).any() or np.isclose(cmds, 30.0).any()
 
 
 def _roll_rise_time(preset: str) -> float:
@@ -197,9 +207,12 @@ def _roll_rise_time(preset: str) -> float:
 
 
 def test_large_drone_rolls_slower_than_small_drone_with_the_same_gains():
-    # The paper's observation, measured: less motor torque per unit of inertia => slower attitude.
+    # The paper's observation, measured: less motor torque per unit of inertia => slower attitude. With
+    # motors sized for a thrust-to-weight of 2 the large drone has 61 % of the small one's torque per
+    # unit of inertia (the paper's motors: 43 %), and both loops are near their overdamped limit, where
+    # the rise time tends to gain_rate_d / gain_att_p = 0.17 s whatever the airframe: the gap is small.
     small, large = _roll_rise_time("small"), _roll_rise_time("large")
-    assert large > 1.1 * small
+    assert large > small
 
 
 def test_pure_pursuit_flies_a_4_waypoint_route_within_half_a_metre_and_stops_on_the_last_point():
@@ -273,7 +286,7 @@ def test_low_battery_ends_the_mission_and_lands():
 
 def test_recharge_on_a_pad_refills_the_battery_at_the_charger_power():
     comps = """
-      energy: {initial_soc_frac: 0.5, charge_power_w: 10000.0}
+      energy: {initial_soc_frac: 0.5, charge_power_w: 10000.0, battery: ideal}
       mission:
         name: charge
         steps:

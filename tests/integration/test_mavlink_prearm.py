@@ -34,8 +34,8 @@ def rig(tmp_path):
 
 
 def _drain_battery(sim: Simulation, frac: float) -> None:
-    """Leave ``frac`` of the battery d1 holds now (the energy model goes on from there)."""
-    sim.fleet.energy_j[sim.row("d1")] *= frac
+    """Leave ``frac`` of the charge d1 holds now (the energy model goes on from there)."""
+    sim.fleet.soc_frac[sim.row("d1")] *= frac
 
 
 def _settle(sim: Simulation) -> None:

@@ -44,7 +44,7 @@ def drone_rows(steps=("takeoff", "cruise", "land"), seconds_per_step: float = 3.
         payload = 2.5 if steps[max(idx, 0)] in ("pickup", "cruise") else 0.0
         rows.append(_pose(t, x, y, z, (2.0, 1.0, 0.5)) + [
             "auto", "mission", "in_air", "20.0000", "20.5000", "21.0000", "21.5000", "83.0000", "1500.000", f"{t * 0.4:.5f}",
-            f"{500 - t * 0.4:.5f}", f"{1 - t * 0.0008:.6f}", "1200.0", f"{payload:.3f}", str(idx),
+            f"{500 - t * 0.4:.5f}", f"{1 - t * 0.0008:.6f}", f"{24.6 - t * 0.01:.4f}", "61.0000", "1200.0", f"{payload:.3f}", str(idx),
             "" if idx < 0 else steps[idx]])
     return rows
 

@@ -129,11 +129,25 @@ def test_battery_state_follows_the_energy_model():
         sim.run(duration=10.0)
         msg = sim.sensor("d1", "battery")
         row = sim.row("d1")
-        assert msg.percentage == pytest.approx(sim.fleet.soc_frac[row], abs=1e-3)
-        assert msg.current == pytest.approx(-sim.fleet.power_w[row] / 22.2, rel=0.05)
-        assert msg.charge == pytest.approx(sim.fleet.energy_j[row] / 3600 / 22.2, rel=1e-3)
-        assert msg.capacity == pytest.approx(500 / 22.2)
+        f = sim.fleet
+        assert msg.percentage == pytest.approx(f.soc_frac[row], abs=1e-3)
+        # the pack's terminal voltage and current carry the power drawn (ROS: negative while discharging)
+        assert msg.voltage * -msg.current == pytest.approx(f.power_w[row], rel=0.02)
+        assert msg.voltage == pytest.approx(f.pack_voltage_v[row], rel=0.01)
+        assert 6 * 3.5 < msg.voltage < 6 * 4.2 and len(msg.cell_voltage) == 6
+        assert sum(msg.cell_voltage) == pytest.approx(msg.voltage, rel=1e-5)
+        assert msg.design_capacity == pytest.approx(500 / 22.2)            # 500 Wh at 6 x 3.7 V
+        assert msg.capacity == pytest.approx(msg.design_capacity)          # a new pack: no fade yet
+        assert msg.charge == pytest.approx(msg.percentage * msg.capacity, rel=1e-6)
         assert msg.power_supply_status == 2                      # DISCHARGING
+
+
+def test_an_aged_pack_reports_its_faded_capacity():
+    with Simulation(load_world_text(world(drone("d1", "battery: {}, energy: {cycles: 250}")))) as sim:
+        sim.run(duration=1.0)
+        msg = sim.sensor("d1", "battery")
+        # 500 cycles to 80 %: after 250 the pack holds 90 % of its design capacity
+        assert msg.capacity == pytest.approx(0.9 * msg.design_capacity)
 
 
 def test_odometry_is_ground_truth_with_the_twist_in_the_body_frame():

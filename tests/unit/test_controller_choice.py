@@ -256,7 +256,7 @@ def test_built_params_select_the_one_system_that_runs_each_drones_attitude_law(r
         assert f.ctl_HoverOnlyParams_calls[d2] == 100.0 and f.ctl_HoverOnlyParams_calls[d1] == 0.0
         assert f.ctl_StabilizerGains_vz_int_m_s[d2] == 0.0 and f.ctl_StabilizerGains_vz_int_m_s[d1] != 0.0
         # AND d2's command is its law's: half the hover thrust, no torque
-        assert f.thrust_frac_sp[d2] == pytest.approx(0.5 * 5.0 * 9.81 / (4 * 20.0))
+        assert f.thrust_frac_sp[d2] == pytest.approx(0.5 * 5.0 * 9.81 / (4 * 30.0))   # small: 5 kg, 30 N motors
         assert np.all(f.torque_cmd[d2] == 0.0)
 
 

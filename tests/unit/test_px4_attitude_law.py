@@ -31,9 +31,9 @@ DT_S = 1.0 / 240.0
 
 # quadrotor presets (unetyemu_ecs/vehicles/params/quadrotor.toml): mass, F_max, arm, box half extents
 PRESETS = {
-    "small": dict(mass_kg=5.0, f_max_n=20.0, arm_m=0.24, half_m=(0.17, 0.17, 0.08)),
-    "medium": dict(mass_kg=8.0, f_max_n=32.0, arm_m=0.354, half_m=(0.25, 0.25, 0.08)),
-    "large": dict(mass_kg=12.0, f_max_n=40.0, arm_m=0.53, half_m=(0.375, 0.375, 0.10)),
+    "small": dict(mass_kg=5.0, f_max_n=30.0, arm_m=0.24, half_m=(0.17, 0.17, 0.08)),
+    "medium": dict(mass_kg=8.0, f_max_n=55.0, arm_m=0.354, half_m=(0.25, 0.25, 0.08)),
+    "large": dict(mass_kg=12.0, f_max_n=85.0, arm_m=0.53, half_m=(0.375, 0.375, 0.10)),
 }
 YAW_MOMENT_COEFF_M = 0.016
 

@@ -20,4 +20,4 @@ class AeroDrag:
     # air from ~0.01 kg/m^3 (30 km up) to 2 (a cold, dense day at sea level is 1.4)
     drag_coeff: Annotated[float, Ge(0.0), Le(10.0)] = 1.0                             # C_d [-]
     area_flu_m2: Annotated[tuple[float, float, float], Each(Ge(0.0)), Each(Le(100.0))]  # frontal areas [m^2]
-    air_density_kg_m3: Annotated[float, Ge(0.01), Le(2.0)] = 1.225                    # ISA sea level
+    air_density_kg_m3: Annotated[float, Ge(0.01), Le(2.0)] | None = None    # None: the world's air (ISA)

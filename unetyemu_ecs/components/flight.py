@@ -7,7 +7,7 @@ which cite their sources) merged with the world file's ``components:`` overrides
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated
+from typing import Annotated, Literal
 
 from ..config.limits import MAX_DURATION_S, MAX_KEYFRAMES
 from ..config.schema import Each, FieldError, Ge, Gt, Le, Lt, MaxLen
@@ -62,24 +62,59 @@ class PayloadBay:
     reach_vertical_m: Annotated[float, Gt(0.0), Le(10.0)]
 
 
+LIPO_CELL_NOMINAL_V = 3.7     # [V]
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class EnergyModel:
-    """Actuator-disk power model and battery (world-file key ``energy``).
+    """Rotor power and battery of a drone (world-file key ``energy``).
 
-    ``P_i = F_i^1.5 / (sqrt(2 rho A) eta)`` with ``A = pi r^2``; ``P = sum P_i + p0_w``.
+    ``model``: ``momentum`` (default) is momentum theory with the real inflow through each rotor --
+    climb, descent (vortex-ring state) and forward flight (Glauert) -- plus the growth of blade
+    profile power with advance ratio (:mod:`unetyemu_ecs.control.rotor_power`); in hover it is
+    exactly the paper's eq. 4. ``hover_actuator_disk`` is eq. 4 applied to the thrust alone,
+    ``P_i = F_i^1.5 / (sqrt(2 rho A) eta)``, whatever the drone's motion (the paper's model).
+    ``P = sum P_i + p0_w``.
+
+    ``battery``: ``lipo`` (default) is an equivalent-circuit LiPo pack
+    (:mod:`unetyemu_ecs.control.battery_ecm`: open-circuit voltage vs state of charge, R0, one RC
+    pair, cut-off voltage, capacity fade with cycles) of ``battery_wh`` at ``cells_series`` x 3.7 V;
+    ``ideal`` is the paper's energy bucket at a constant voltage.
     """
 
     # Ranges: rotors within 10 m radius; air as in AeroDrag; avionics within 100 kW; packs up to 1 MWh
     # and chargers up to 1 MW (megawatt truck charging); the power filter within an hour
     rotor_radius_m: Annotated[float, Gt(0.0), Le(10.0)]
     efficiency: Annotated[float, Gt(0.0), Le(1.0)]
-    air_density_kg_m3: Annotated[float, Ge(0.01), Le(2.0)]
     p0_w: Annotated[float, Ge(0.0), Le(1e5)]                      # avionics, always drawn
     battery_wh: Annotated[float, Gt(0.0), Le(1e6)]
     initial_soc_frac: Annotated[float, Ge(0.0), Le(1.0)]
     charge_power_w: Annotated[float, Gt(0.0), Le(1e6)]            # charger power on a pad (recharge step)
     low_battery_land_frac: Annotated[float, Ge(0.0), Lt(1.0)]   # abort the mission and land below this
     remaining_time_tau_s: Annotated[float, Gt(0.0), Le(3_600.0)]  # filter on power for remaining flight time
+    model: Literal["momentum", "hover_actuator_disk"] = "momentum"
+    # blade profile power (momentum model): tip speeds of drone propellers are ~50-250 m/s, solidity
+    # 0.02-0.3, section drag coefficient 0.005-0.1
+    tip_speed_m_s: Annotated[float, Gt(1.0), Le(340.0)] = 120.0
+    rotor_solidity: Annotated[float, Gt(0.0), Le(1.0)] = 0.08
+    blade_drag_coeff: Annotated[float, Ge(0.0), Le(1.0)] = 0.02
+    air_density_kg_m3: Annotated[float, Ge(0.01), Le(2.0)] | None = None   # None: the world's air
+    battery: Literal["lipo", "ideal"] = "lipo"
+    # LiPo pack (battery: lipo), per cell; defaults: control.battery_ecm.LipoPackParams (a Tattu 22 Ah 6S
+    # pack), cells from 1 to a 24S heavy lifter
+    cells_series: Annotated[int, Ge(1), Le(24)] = 6
+    cell_r0_ohm: Annotated[float, Ge(0.0), Le(1.0)] = 1.0e-3
+    cell_r1_ohm: Annotated[float, Gt(0.0), Le(1.0)] = 0.627e-3
+    rc_tau_s: Annotated[float, Gt(0.0), Le(1e4)] = 32.85
+    cell_cutoff_v: Annotated[float, Ge(2.5), Le(4.0)] = 3.5
+    cycles: Annotated[float, Ge(0.0), Le(1e5)] = 0.0              # equivalent full cycles already done
+    cycle_life: Annotated[float, Gt(0.0), Le(1e5)] = 500.0        # cycles to eol_capacity_frac
+    eol_capacity_frac: Annotated[float, Ge(0.0), Le(1.0)] = 0.8
+
+    @property
+    def design_capacity_ah(self) -> float:
+        """The new pack's capacity [Ah]: ``battery_wh`` at ``cells_series`` x 3.7 V (a LiPo cell's nominal voltage)."""
+        return self.battery_wh / (self.cells_series * LIPO_CELL_NOMINAL_V)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

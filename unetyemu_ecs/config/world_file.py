@@ -53,6 +53,51 @@ class OriginSpec:
 
 
 @dataclass(frozen=True, kw_only=True)
+class AirSpec:
+    """The air of the world: ISA at the origin's altitude unless overridden.
+
+    With nothing given the density is the International Standard Atmosphere's at ``origin.alt_m``
+    (1.150 kg/m^3 at Madrid's 650 m). ``temperature_c`` gives a hot or cold day at that altitude (ISA
+    pressure, density from the actual temperature); ``density_kg_m3`` sets the density outright
+    (1.225 for the paper's sea-level figures). Drag and rotor power use it unless a vehicle's own
+    ``energy`` / ``aero_drag`` block sets ``air_density_kg_m3``.
+    """
+
+    # -60 C (polar winter) .. +60 C (desert ground); air density of 0.01 (30 km up) .. 2 kg/m^3
+    temperature_c: Annotated[float, Ge(-60.0), Le(60.0)] | None = None
+    density_kg_m3: Annotated[float, Ge(0.01), Le(2.0)] | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class GustSpec:
+    """A discrete "1 - cosine" gust (MIL-F-8785C shape): the wind rises by ``peak_m_s`` over
+    ``rise_time_s`` from ``start_s`` and falls back over the same time, toward ``toward_deg``."""
+
+    start_s: Annotated[float, Ge(0.0), Le(MAX_DURATION_S)]
+    peak_m_s: Annotated[float, Ge(-50.0), Le(50.0)]            # beyond 50 m/s no drone or car flies or drives
+    rise_time_s: Annotated[float, Gt(0.0), Le(600.0)] = 2.0
+    toward_deg: Deg = 0.0                                     # ENU: 0 = toward east, 90 = toward north
+    vertical: bool = False                                     # an updraft (peak > 0) or downdraft instead
+
+
+@dataclass(frozen=True, kw_only=True)
+class WindSpec:
+    """World-level wind: a mean wind, Dryden turbulence and discrete gusts, seeded by the world's seed.
+
+    Every body with drag (drones, packages, cars) feels it through its ``aero_drag``; sensors see its
+    effects, never the wind itself.
+    """
+
+    speed_m_s: Annotated[float, Ge(0.0), Le(50.0)] = 0.0     # mean horizontal wind [m/s]
+    toward_deg: Deg = 0.0                                     # ENU direction it blows toward (0 = east, CCW)
+    vertical_m_s: Annotated[float, Ge(-20.0), Le(20.0)] = 0.0   # mean updraft (+) / downdraft (-) [m/s]
+    # Dryden turbulence intensity: the wind speed at 20 ft that sets it (MIL-F-8785C: light 7.7,
+    # moderate 15.4, severe 23.1 m/s); 0 = no turbulence
+    turbulence_w20_m_s: Annotated[float, Ge(0.0), Le(50.0)] = 0.0
+    gusts: Annotated[list[GustSpec], MaxLen(1_000)] = field(default_factory=list)
+
+
+@dataclass(frozen=True, kw_only=True)
 class WorldSection:
     """Global settings of a world."""
 
@@ -67,6 +112,18 @@ class WorldSection:
     duration_s: Annotated[float, Gt(0.0), Le(MAX_DURATION_S)] = 60.0
     # CSV log rate: one row per 100 s at least (fewer says nothing), 1 kHz at most (CSV growth)
     log_hz: Annotated[float, Ge(0.01), Le(1_000.0)] = 10.0
+    air: AirSpec = AirSpec()
+    wind: WindSpec | None = None      # none: still air (a `systems:` wind plugin may still blow)
+
+    def air_density_kg_m3(self) -> float:
+        """The world's air density [kg/m^3]: the override, else ISA at the origin (at the given temperature)."""
+        from ..control.atmosphere import air_state_at_temperature, isa_density_kg_m3
+
+        if self.air.density_kg_m3 is not None:
+            return float(self.air.density_kg_m3)
+        if self.air.temperature_c is not None:
+            return float(air_state_at_temperature(self.origin.alt_m, self.air.temperature_c + 273.15).density_kg_m3)
+        return float(isa_density_kg_m3(self.origin.alt_m))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -258,6 +315,7 @@ def resolve_world(doc: Any, src: SourceMap, registry: Registry | None = None,
                     entities.append(ent)
                     where.append((group, i))
         _check_mission_references(entities, where, layout, [p.name for p in spec.packages], src, issues)
+        _check_lift(entities, where, float(np.linalg.norm(spec.world.gravity_m_s2)), src, issues)
         _check_spawn_clearance(entities, where, layout, src, issues)
     if issues:
         raise ConfigError(issues)
@@ -273,6 +331,26 @@ def _check_mission_references(entities: list[EntityDefinition], where: list[Path
             if isinstance(comp, MissionSpec):
                 for path, message in mission_reference_issues(comp, layout, package_names):
                     issues.append(src.issue((group, i, "components", key, *path), message))
+
+
+def _check_lift(entities: list[EntityDefinition], where: list[Path], gravity_m_s2: float, src: SourceMap,
+                issues: list[Issue]) -> None:
+    """A drone whose motors cannot hover it with its own max payload fails at load (it would sit on
+    the ground at full thrust with a mission that never ends)."""
+    for ent, (group, i) in zip(entities, where):
+        motors, bay = ent.components.get("motors"), ent.components.get("payload")
+        if ent.kind != "quadrotor" or motors is None:
+            continue
+        max_payload_kg = getattr(bay, "max_payload_kg", 0.0)
+        weight_n = (float(ent.params["mass_kg"]) + max_payload_kg) * gravity_m_s2
+        thrust_n = 4.0 * motors.max_thrust_per_motor_n
+        if thrust_n < weight_n:
+            path: Path = (group, i, "components", "payload" if bay is not None and max_payload_kg > 0 else "motors")
+            issues.append(src.issue(path, f"{ent.name} cannot hover its max payload: 4 x "
+                                          f"{motors.max_thrust_per_motor_n:g} N = {thrust_n:.1f} N of thrust < "
+                                          f"({ent.params['mass_kg']:g} + {max_payload_kg:g}) kg x {gravity_m_s2:.2f} "
+                                          f"m/s^2 = {weight_n:.1f} N (raise motors.max_thrust_per_motor_n to at least "
+                                          f"{weight_n / 4.0:.1f} N or lower payload.max_payload_kg)"))
 
 
 def _body_box(ent: EntityDefinition) -> tuple[np.ndarray, np.ndarray]:

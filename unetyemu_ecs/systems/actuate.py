@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..components.aero import AeroDrag
 from ..control.aero import quadratic_drag_enu_n
 from ..phases import Phase
@@ -13,7 +15,7 @@ class AeroDragSystem(FleetSystem):
     """Add quadratic drag (relative to the local wind) to every body with :class:`AeroDrag`.
 
     Phase: ACTUATE, after wind systems (order 50). Reads: fleet.vel_enu_m_s, wind_enu_m_s,
-    R_enu_flu. Writes: fleet.force_cmd_enu_n (adds).
+    R_enu_flu; the world's air density unless the component sets one. Writes: fleet.force_cmd_enu_n (adds).
     """
 
     phase = Phase.ACTUATE
@@ -24,7 +26,7 @@ class AeroDragSystem(FleetSystem):
         p = stack_params(self.components[0], AeroDrag)
         self._cd = p.drag_coeff
         self._area = p.area_flu_m2.reshape(-1, 3)
-        self._rho = p.air_density_kg_m3
+        self._rho = np.where(np.isnan(p.air_density_kg_m3), ctx.services.air_density_kg_m3, p.air_density_kg_m3)
 
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet

@@ -191,6 +191,9 @@ FLIGHT_ARRAYS: dict[str, tuple[tuple[int, ...], type, float]] = {
     "remaining_time_s": ((), np.float64, np.inf),
     "charge_power_w": ((), np.float64, 0.0),
     "low_battery": ((), np.bool_, False),
+    "pack_voltage_v": ((), np.float64, 0.0),          # terminal voltage of the battery pack
+    "pack_current_a": ((), np.float64, 0.0),          # + = discharging
+    "pack_v_rc_v": ((), np.float64, 0.0),             # voltage across the pack's RC pair (LiPo model)
     # payload bay (PayloadSystem)
     "payload_kg": ((), np.float64, 0.0),
     "payload_entity": ((), np.int64, -1),             # esper entity of the package carried (-1: none)

@@ -15,7 +15,7 @@ import esper
 import numpy as np
 
 from ..components.body import FleetSlot, Identity, RigidBody
-from ..components.flight import GuidanceLimits
+from ..components.flight import GuidanceLimits, QuadrotorMotors
 from ..components.mission import MissionRuntime
 from ..frames import yaw_rad_from_quat_xyzw
 from ..navigation.params import FlightParams
@@ -37,6 +37,12 @@ GRAB_TOLERANCE_M = 0.12        # position error allowed before grabbing
 PICKUP_SEARCH_RADIUS_M = 30.0
 LAND_BELOW_M = 0.3             # land by aiming this far below the resting height (so touchdown happens)
 STEP_TIMEOUT_S = 600.0
+# A climb that makes no progress: the motors are held at (nearly) full collective thrust while the
+# goal is still above and the drone has not risen CLIMB_PROGRESS_M in CLIMB_STALL_S -> the step fails
+# with reason "insufficient_thrust" and the drone lands where it is.
+CLIMB_STALL_S = 5.0
+CLIMB_PROGRESS_M = 0.5
+CLIMB_SATURATED_FRAC = 0.95    # total commanded thrust / (4 F_max) that counts as "full"
 
 
 class MissionSystem(esper.Processor):
@@ -75,6 +81,9 @@ class MissionSystem(esper.Processor):
         step = rt.spec.steps[rt.step_index]
         if rt.stage == "wait_before" and rt.scratch.get("takeoff_first"):
             self._takeoff_first(ctx, ent, name, row, rt, step)
+            goal = rt.scratch.get("takeoff_goal")
+            if goal is not None and _climb_stalled(ctx, ent, row, rt.scratch, float(goal[2])):
+                self._fail_to_climb(ctx, ent, name, row, rt)
             return
         if rt.stage == "wait_before":
             if t - rt.stage_started_s >= step.wait_before - 1e-9:
@@ -90,6 +99,9 @@ class MissionSystem(esper.Processor):
                 return
             outcome = self._check(ctx, ent, row, rt, step)
             if outcome is None:
+                return
+            if outcome == "insufficient_thrust":
+                self._fail_to_climb(ctx, ent, name, row, rt)
                 return
             if outcome != "done":
                 self._fail(ctx, name, row, rt, outcome)
@@ -128,6 +140,15 @@ class MissionSystem(esper.Processor):
         if f.arrived[row] and abs(f.pos_enu_m[row, 2] - s["takeoff_goal"][2]) < 0.3:
             rt.scratch = {}
             rt.stage_started_s = ctx.sim_time_s
+
+    def _fail_to_climb(self, ctx: StepContext, ent: int, name: str, row: int, rt: MissionRuntime) -> None:
+        """The climb stalled at full thrust: fail with ``insufficient_thrust`` and land where it is."""
+        f = ctx.fleet
+        ctx.services.note(ctx.sim_time_s, name, f"climb stalled at z = {f.pos_enu_m[row, 2]:.2f} m with the motors at "
+                                                f"{f.motor_thrust_cmd_n[row].sum():.1f} N for {CLIMB_STALL_S:g} s")
+        self._fail(ctx, name, row, rt, "insufficient_thrust")
+        f.nav_state[row] = NavState.LAND
+        self._begin_emergency_landing(ctx, ent, row)
 
     def _fail(self, ctx: StepContext, name: str, row: int, rt: MissionRuntime, reason: str) -> None:
         rt.state, rt.reason = "failed", reason
@@ -273,7 +294,9 @@ class MissionSystem(esper.Processor):
         s = rt.scratch
         speed = float(np.linalg.norm(f.vel_enu_m_s[row]))
         if step.type in ("takeoff", "cruise"):
-            return "done" if f.arrived[row] and speed < SETTLED_SPEED_M_S else None
+            if f.arrived[row] and speed < SETTLED_SPEED_M_S:
+                return "done"
+            return "insufficient_thrust" if _climb_stalled(ctx, ent, row, s, float(s["goal"][2])) else None
         if step.type == "land":
             if s.get("landed") or _on_ground(ctx, row):
                 f.flight_mode[row] = FlightMode.DISARMED
@@ -390,6 +413,23 @@ def _hold_here(f: Any, row: int) -> None:
     yaw = float(yaw_rad_from_quat_xyzw(f.quat_enu_flu_xyzw[row]))
     sp = np.array([1.0, 1.0, 1.0])
     set_route(f, row, Route(np.array([pos, pos]), np.array([sp, sp]), yaw))
+
+
+def _climb_stalled(ctx: StepContext, ent: int, row: int, scratch: dict[str, Any], goal_z_m: float) -> bool:
+    """True once drone ``row`` has been climbing towards ``goal_z_m`` at full thrust for :data:`CLIMB_STALL_S`
+    without rising :data:`CLIMB_PROGRESS_M` (its watch lives in the step's ``scratch``)."""
+    f = ctx.fleet
+    z = float(f.pos_enu_m[row, 2])
+    f_max = esper.component_for_entity(ent, QuadrotorMotors).max_thrust_per_motor_n
+    saturated = f.motor_thrust_cmd_n[row].sum() >= CLIMB_SATURATED_FRAC * 4.0 * f_max
+    watch = scratch.get("climb_watch")             # (since_s, from_z_m)
+    if not saturated or goal_z_m - z < CLIMB_PROGRESS_M or (watch is not None and z > watch[1] + CLIMB_PROGRESS_M):
+        scratch.pop("climb_watch", None)
+        return False
+    if watch is None:
+        scratch["climb_watch"] = (ctx.sim_time_s, z)
+        return False
+    return ctx.sim_time_s - watch[0] >= CLIMB_STALL_S
 
 
 def _carried_height(ctx: StepContext, row: int) -> float:

@@ -22,7 +22,7 @@ from .flight_state import FlightMode, LandedState, NavState
 POSE_COLUMNS = ("time_s", "x_m", "y_m", "z_m", "roll_deg", "pitch_deg", "yaw_deg", "lat_deg", "lon_deg",
                 "alt_m", "vx_m_s", "vy_m_s", "vz_m_s", "speed_m_s")
 FLIGHT_COLUMNS = ("mode", "nav_state", "landed_state", "thrust_fl_n", "thrust_fr_n", "thrust_br_n", "thrust_bl_n", "thrust_total_n", "power_w",
-                  "energy_used_wh", "battery_wh", "soc_frac", "remaining_time_s", "payload_kg", "mission_step",
+                  "energy_used_wh", "battery_wh", "soc_frac", "pack_voltage_v", "pack_current_a", "remaining_time_s", "payload_kg", "mission_step",
                   "mission_step_type")
 CAR_COLUMNS = ("drive_mode", "throttle", "brake", "steer_deg", "speed_fwd_m_s", "speed_sp_m_s")
 
@@ -121,7 +121,8 @@ class TrajectoryLogSystem(FleetSystem):
         return [FlightMode(int(f.flight_mode[row])).name.lower(), NavState(int(f.nav_state[row])).name.lower(),
                 LandedState(int(f.landed_state[row])).name.lower(), *(f"{t:.4f}" for t in thrust),
                 f"{thrust.sum():.4f}", f"{f.power_w[row]:.3f}", f"{f.energy_used_j[row] / 3600.0:.5f}",
-                f"{f.energy_j[row] / 3600.0:.5f}", f"{f.soc_frac[row]:.6f}",
+                f"{f.energy_j[row] / 3600.0:.5f}", f"{f.soc_frac[row]:.6f}", f"{f.pack_voltage_v[row]:.4f}",
+                f"{f.pack_current_a[row]:.4f}",
                 f"{min(f.remaining_time_s[row], 1e9):.1f}", f"{f.payload_kg[row]:.3f}", str(step), step_type]
 
     @staticmethod

@@ -107,7 +107,8 @@ class Snapshot:
     rate_flu_rad_s (N,3) · flight_mode (N,) int (FlightMode) · nav_state (N,) int (NavState) ·
     armed (N,) bool · landed_state (N,) int (LandedState) · home_enu_m (N,3) · home_set (N,) bool ·
     soc_frac (N,) · energy_j (N,) left [J] · energy_used_j (N,) · power_w (N,) · remaining_time_s (N,) ·
-    low_battery (N,) bool · payload_kg (N,) · mission_step (N,) int (-1 none) ·
+    low_battery (N,) bool · pack_voltage_v (N,) [V] · pack_current_a (N,) [A, + discharging] ·
+    payload_kg (N,) · mission_step (N,) int (-1 none) ·
     mission_state (N,) int (MissionState) · speed_limit_m_s (N,3) ·
     arm_block (N,) int (ArmBlock: why arming would be refused now, 0 = it would arm).
 

@@ -33,8 +33,8 @@ from .api import Snapshot
 # fleet array -> snapshot array (same name); "armed" is derived (a drone not DISARMED, a car not PARKED)
 SNAPSHOT_ARRAYS = ("pos_enu_m", "vel_enu_m_s", "acc_enu_m_s2", "quat_enu_flu_xyzw", "rate_flu_rad_s",
                    "flight_mode", "nav_state", "landed_state", "home_enu_m", "home_set", "soc_frac",
-                   "energy_j", "energy_used_j", "power_w", "remaining_time_s", "low_battery", "payload_kg",
-                   "mission_step", "mission_state", "speed_limit_m_s", "arm_block")
+                   "energy_j", "energy_used_j", "power_w", "remaining_time_s", "low_battery", "pack_voltage_v",
+                   "pack_current_a", "payload_kg", "mission_step", "mission_state", "speed_limit_m_s", "arm_block")
 IDLE_STATUS = MappingProxyType({"mission": None, "state": "idle"})     # a drone without a mission
 _NO_PARAMS: Any = MappingProxyType({})
 _PARKED = int(DriveMode.PARKED)    # a plain int, like flight_state.MODE_DISARMED: enum lookups cost

@@ -14,7 +14,6 @@ from ...systems.flight_state import ArmBlock
 from ..api import Snapshot
 from . import px4
 
-CELLS = 4                          # battery pack reported as 4S Li-ion: 3.5 V empty .. 4.2 V full per cell
 UINT16_UNKNOWN = 65535
 _HOME_CACHE: dict[tuple[float, ...], tuple[float, float, float]] = {}     # transport thread only
 
@@ -65,7 +64,8 @@ class RowView:
         self.remaining_time_s = float(_get(snap, "remaining_time_s", row, math.inf))
         self.low_battery = bool(_get(snap, "low_battery", row, False))
         self.arm_block = int(_get(snap, "arm_block", row, ArmBlock.LOW_BATTERY if self.low_battery else 0))
-        self.voltage_v = CELLS * (3.5 + 0.7 * self.soc)
+        self.voltage_v = float(_get(snap, "pack_voltage_v", row, 0.0))
+        self.current_a = float(_get(snap, "pack_current_a", row, 0.0))
 
     @property
     def heading_cdeg(self) -> int:
@@ -96,10 +96,10 @@ def build(msgid: int, v: RowView, imu: Any | None) -> mavlink2.MAVLink_message |
             health |= px4.SENSOR_PREARM
         if v.low_battery:
             health &= ~px4.SENSOR_BATTERY
-        current_ca = _i16(v.power_w / v.voltage_v * 100.0) if v.voltage_v > 0 else -1
+        current_ca = _i16(v.current_a * 100.0) if v.voltage_v > 0 else -1
         return mavlink2.MAVLink_sys_status_message(
             px4.SENSORS_PRESENT | px4.SENSOR_PREARM, px4.SENSORS_PRESENT | px4.SENSOR_PREARM, health,
-            100, int(v.voltage_v * 1000), current_ca, int(round(v.soc * 100)), 0, 0, 0, 0, 0, 0)
+            100, min(int(v.voltage_v * 1000), UINT16_UNKNOWN - 1), current_ca, int(round(v.soc * 100)), 0, 0, 0, 0, 0, 0)
     if msgid == 24:
         return mavlink2.MAVLink_gps_raw_int_message(
             v.time_usec, 3, _i32(v.lat_deg * 1e7), _i32(v.lon_deg * 1e7), _i32(v.alt_m * 1000), 100, 100,
@@ -137,8 +137,8 @@ def build(msgid: int, v: RowView, imu: Any | None) -> mavlink2.MAVLink_message |
             v.time_usec, v.alt_m, v.alt_m, float(-v.pos_local_ned[2]), v.relative_alt_m, float(v.pos_enu[2]),
             float(v.pos_enu[2]))
     if msgid == 147:
-        voltages = [int(v.voltage_v * 1000)] + [UINT16_UNKNOWN] * 9
-        current_ca = _i16(v.power_w / v.voltage_v * 100.0) if v.voltage_v > 0 else -1
+        voltages = [min(int(v.voltage_v * 1000), UINT16_UNKNOWN - 1)] + [UINT16_UNKNOWN] * 9
+        current_ca = _i16(v.current_a * 100.0) if v.voltage_v > 0 else -1
         used_mah = _i32(v.energy_used_j / 3.6 / v.voltage_v) if v.voltage_v > 0 else -1
         remaining = _i32(min(v.remaining_time_s, 2**31 - 1)) if math.isfinite(v.remaining_time_s) else 0
         charge_state = 4 if v.soc <= 0.0 else (2 if v.low_battery else 1)    # EMERGENCY / LOW / OK

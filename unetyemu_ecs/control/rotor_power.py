@@ -1,0 +1,141 @@
+"""Rotor power from momentum theory with the real inflow (climb, descent, forward flight), vectorised.
+
+Per rotor of disk area ``A`` producing thrust ``T`` in air of density ``rho``, with the air meeting
+the disk at ``V_c`` along the rotor axis (positive when the rotor moves up its axis: climb, or the
+axial part of forward flight with the disk tilted into the wind) and ``V_h`` in the disk plane:
+
+- hover induced velocity ``v_h = sqrt(T / (2 rho A))``;
+- Glauert's momentum theory for the normal working state (climb, hover, forward flight, slow
+  descent): the total inflow ``u = V_c + v_i`` solves ``u = V_c + v_h^2 / sqrt(V_h^2 + u^2)``
+  (Leishman, "Principles of Helicopter Aerodynamics", 2nd ed., 2006, §2.13 and §5.3; solved by
+  Newton's method on ``u > 0``);
+- descent: momentum theory has no valid solution in the vortex-ring state (roughly
+  ``-2 v_h < V_c < 0`` with little in-plane speed). There we take the induced velocity from
+  Leishman's empirical fit to measured axial-descent data (ibid. ch. 2, the vortex-ring and
+  turbulent-wake states: ``v_i / v_h = k + k1 x + k2 x^2 + k3 x^3 + k4 x^4`` for ``-2 <= x <= 0``,
+  ``x = V_c / v_h``, k = 1.15, k1..k4 = -1.125, -1.372, -1.718, -0.655), shifted linearly so
+  that it meets momentum theory at both ends (``v_i = v_h`` in hover, the windmill-brake state's
+  ``v_i = -V_c/2 - sqrt(V_c^2/4 - v_h^2)`` at ``x = -2``); beyond ``x = -2`` the windmill-brake
+  solution holds. The vortex ring fades with in-plane speed: its correction to momentum theory is
+  added with weight ``max(0, 1 - V_h / v_h)`` (the ring is blown away once the in-plane speed
+  reaches about ``v_h``, cf. Wolkovitch's boundary). A descent with in-plane speed steeper than
+  ``V_c = -v_h^2 / V_h`` has no normal-working-state solution: the air flows up through the disk
+  (windmill-brake state, Glauert's other root);
+- power to the shaft ``T (V_c + v_i)`` (induced plus climb power; in forward flight with a tilted
+  disk ``T V_c`` is the fuselage's parasite power), plus the *increase* of blade profile power
+  with advance ratio ``mu = V_h / V_tip``: ``P_0h * 4.65 mu^2`` with ``P_0h = (sigma C_d0 / 8) rho
+  A V_tip^3`` (Leishman ch. 5, forward-flight profile power). The hover profile power is part of the overall efficiency
+  ``eta`` of the paper's eq. 4, so that in hover this reduces *exactly* to eq. 4:
+  ``P = T^1.5 / (sqrt(2 rho A) eta)``. Electrical power is the shaft power over ``eta``, never
+  negative (the ESCs do not regenerate).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+# Leishman (2006) ch. 2: empirical induced velocity in axial descent, v_i / v_h as a polynomial of V_c / v_h
+_VRS_FIT = (1.15, -1.125, -1.372, -1.718, -0.655)
+PROFILE_MU2_FACTOR = 4.65     # profile power grows as (1 + 4.65 mu^2) (Leishman ch. 5)
+_NEWTON_STEPS = 6
+_BISECTION_STEPS = 48
+
+
+def hover_induced_velocity_m_s(thrust_n: np.ndarray, air_density_kg_m3: np.ndarray,
+                               disk_area_m2: np.ndarray) -> np.ndarray:
+    """``v_h = sqrt(T / (2 rho A))`` [m/s] (negative thrust counts as zero)."""
+    return np.sqrt(np.maximum(thrust_n, 0.0) / (2.0 * air_density_kg_m3 * disk_area_m2))
+
+
+def _glauert_inflow_m_s(v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray, v_h_m_s: np.ndarray) -> np.ndarray:
+    """Total inflow ``u = V_c + v_i`` of Glauert's relation ``u = V_c + v_h^2 / sqrt(V_h^2 + u^2)``.
+
+    The normal working state's root ``u > 0`` (Newton's method from above it) where it exists; in a
+    descent steeper than ``V_c = -v_h^2 / V_h`` there is none and the air flows up through the disk:
+    the root in ``(V_c, 0)`` (the windmill-brake state, by bisection). Both roots meet at ``u = 0`` on
+    that boundary, so the result is continuous.
+    """
+    vh2 = v_h_m_s * v_h_m_s
+    u = np.maximum(v_axial_m_s, 0.0) + v_h_m_s          # an upper bound of the positive root when V_c >= 0
+    for _ in range(_NEWTON_STEPS):
+        r2 = v_inplane_m_s * v_inplane_m_s + u * u
+        r = np.sqrt(np.maximum(r2, 1e-12))
+        f = u - v_axial_m_s - vh2 / r
+        df = 1.0 + vh2 * u / (r2 * r + 1e-12)
+        u = np.maximum(u - f / df, 1e-9)
+    upward = v_axial_m_s * v_inplane_m_s < -vh2           # no positive root: windmill-brake state
+    if np.any(upward):
+        vc, vh_in, vh2_in = (np.broadcast_to(a, u.shape)[upward] for a in (v_axial_m_s, v_inplane_m_s, vh2))
+        lo, hi = vc.copy(), np.zeros_like(vc)               # F(lo) < 0 < F(hi)
+        for _ in range(_BISECTION_STEPS):
+            mid = 0.5 * (lo + hi)
+            above = mid - vc - vh2_in / np.sqrt(vh_in * vh_in + mid * mid) > 0.0
+            hi, lo = np.where(above, mid, hi), np.where(above, lo, mid)
+        u = np.array(u, dtype=float)
+        u[upward] = 0.5 * (lo + hi)
+    return u
+
+
+def _descent_induced_m_s(v_axial_m_s: np.ndarray, v_h_m_s: np.ndarray) -> np.ndarray:
+    """Induced velocity in axial descent (``V_c < 0``): the vortex-ring fit for ``-2 <= x < 0``, the
+    windmill-brake state below, both meeting momentum theory at ``x = 0`` and ``x = -2``."""
+    vh = np.maximum(v_h_m_s, 1e-9)
+    x = np.maximum(v_axial_m_s / vh, -2.0)
+    k0, k1, k2, k3, k4 = _VRS_FIT
+    fit = k0 + x * (k1 + x * (k2 + x * (k3 + x * k4)))
+    fit_at_minus2 = k0 - 2 * k1 + 4 * k2 - 8 * k3 + 16 * k4
+    ring = fit - (k0 - 1.0) - (fit_at_minus2 - (k0 - 1.0) - 1.0) * (-x / 2.0)   # 1 at x = 0 and at x = -2
+    half = -0.5 * v_axial_m_s
+    windmill = half - np.sqrt(np.maximum(half * half - vh * vh, 0.0))
+    return np.where(v_axial_m_s / vh > -2.0, ring * vh, windmill)
+
+
+def induced_velocity_m_s(thrust_n: np.ndarray, v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray,
+                         air_density_kg_m3: np.ndarray, disk_area_m2: np.ndarray) -> np.ndarray:
+    """Induced velocity ``v_i`` [m/s] of each rotor (scalars or any matching shapes; see the module docstring).
+
+    v_axial_m_s : air velocity along the rotor axis, positive when the rotor climbs into it [m/s]
+    v_inplane_m_s : speed of the air in the disk plane (>= 0) [m/s]
+
+    In descent the vortex-ring correction is the difference between the axial-descent curve and
+    momentum theory in axial flight, added to Glauert's value with weight ``max(0, 1 - V_h / v_h)``:
+    zero at ``V_c = 0`` (continuous with climb at any in-plane speed) and exactly the axial curve
+    without in-plane speed.
+    """
+    v_axial_m_s = np.asarray(v_axial_m_s, dtype=float)
+    v_inplane_m_s = np.asarray(v_inplane_m_s, dtype=float)
+    v_h = hover_induced_velocity_m_s(np.asarray(thrust_n, dtype=float), air_density_kg_m3, disk_area_m2)
+    glauert = _glauert_inflow_m_s(v_axial_m_s, v_inplane_m_s, v_h) - v_axial_m_s
+    descending = v_axial_m_s < 0.0
+    if not np.any(descending):
+        return glauert
+    weight = np.where(descending, np.clip(1.0 - v_inplane_m_s / np.maximum(v_h, 1e-9), 0.0, 1.0), 0.0)
+    if not np.any(weight > 0.0):
+        return glauert
+    v_c = np.minimum(v_axial_m_s, 0.0)
+    axial_momentum = _glauert_inflow_m_s(v_c, np.zeros_like(v_c), v_h) - v_c
+    return glauert + weight * (_descent_induced_m_s(v_c, v_h) - axial_momentum)
+
+
+def rotor_shaft_power_w(thrust_n: np.ndarray, v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray,
+                        air_density_kg_m3: np.ndarray, disk_area_m2: np.ndarray, profile_hover_w: np.ndarray,
+                        tip_speed_m_s: np.ndarray) -> np.ndarray:
+    """Shaft power [W] of each rotor beyond hover profile power: ``T (V_c + v_i) + P_0h 4.65 (V_h / V_tip)^2``.
+
+    Negative where the rotor extracts energy from the air (windmill brake state); callers clamp.
+    """
+    v_i = induced_velocity_m_s(thrust_n, v_axial_m_s, v_inplane_m_s, air_density_kg_m3, disk_area_m2)
+    mu = v_inplane_m_s / tip_speed_m_s
+    return np.maximum(thrust_n, 0.0) * (v_axial_m_s + v_i) + profile_hover_w * PROFILE_MU2_FACTOR * mu * mu
+
+
+def profile_hover_power_w(solidity: np.ndarray, blade_drag_coeff: np.ndarray, air_density_kg_m3: np.ndarray,
+                          disk_area_m2: np.ndarray, tip_speed_m_s: np.ndarray) -> np.ndarray:
+    """Blade profile power of a rotor in hover, ``(sigma C_d0 / 8) rho A V_tip^3`` [W] (Leishman ch. 2)."""
+    return solidity * blade_drag_coeff / 8.0 * air_density_kg_m3 * disk_area_m2 * tip_speed_m_s ** 3
+
+
+def climb_to_hover_power_ratio(v_climb_m_s: np.ndarray, v_h_m_s: np.ndarray) -> np.ndarray:
+    """Textbook axial-climb power ratio ``P_c / P_h = V_c/(2 v_h) + sqrt((V_c/(2 v_h))^2 + 1)`` (Leishman ch. 2, axial climb)."""
+    half = np.asarray(v_climb_m_s) / (2.0 * np.asarray(v_h_m_s))
+    return half + np.sqrt(half * half + 1.0)
