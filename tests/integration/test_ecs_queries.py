@@ -23,7 +23,7 @@ G = 9.81
 RHO = 1.225                       # sea-level air [kg/m^3], set as the world's air below
 BOX_KG, BOX_AREA_M2, BOX_CD = 0.5, 0.16, 1.0
 
-# A 0.5 kg, 40 cm box 30 m up with no drag, and a second box resting on the ground that has
+# A 0.5 kg, 40 cm box 30 m up with no drag (coefficient 0), and a second box resting on the ground that has
 # aero_drag (so that the drag system is part of the world).
 FALL_WORLD = f"""
 world: {{name: queries, physics_hz: 240, seed: 3, air: {{density_kg_m3: 1.225}}}}
@@ -33,6 +33,7 @@ packages:
     mass_kg: {BOX_KG}
     size_m: [0.4, 0.4, 0.4]
     pose: {{position_m: [0.0, 0.0, 30.0]}}
+    components: {{aero_drag: {{drag_coeff: 0.0}}}}     # a fall in vacuum (packages have a box's drag)
   - name: crate
     mass_kg: 2.0
     size_m: [0.4, 0.4, 0.4]

@@ -19,6 +19,7 @@ packages:
     mass_kg: 2.0
     size_m: [0.4, 0.4, 0.4]
     pose: {position_m: [0.0, 0.0, 10.2]}
+    components: {aero_drag: {drag_coeff: 0.0}}     # a fall in vacuum (packages have a box's drag)
 """
 
 

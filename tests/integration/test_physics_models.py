@@ -183,3 +183,70 @@ def test_a_drone_holds_position_in_8_m_s_of_wind_tilted_as_its_drag_predicts(mod
     else:
         # the paper's eq. 4 sees only the larger thrust that balances the drag: more power than in still air
         assert power[True] > power[False]
+
+
+def test_the_wind_pushes_a_falling_package_as_its_box_drag_predicts_and_reaches_cars():
+    extra = "  air: {density_kg_m3: 1.2}\n  wind: {speed_m_s: 10.0, toward_deg: 0.0}\n"
+    world = big_world("""  - name: car1
+    type: car
+    preset: medium
+    pose: {position_m: [20.0, 20.0, 1.0]}
+""", extra).replace("vehicles:", """packages:
+  - name: box
+    mass_kg: 2.0
+    size_m: [0.4, 0.4, 0.4]
+    pose: {position_m: [0.0, 0.0, 60.0]}
+vehicles:""")
+    with Simulation(load_world_text(world)) as sim:
+        drag = sim.component("box", AeroDrag)
+        assert drag.drag_coeff == pytest.approx(1.05) and np.allclose(drag.area_flu_m2, 0.16)
+        assert sim.component("car1", AeroDrag).area_flu_m2[0] > 0.0            # cars have drag too
+        sim.run(duration=2.0)
+        box_v = sim.velocity_enu_m_s("box")
+        assert np.allclose(sim.fleet.wind_enu_m_s[sim.row("car1")], [10.0, 0.0, 0.0])
+    # reference: m dv/dt = m g - 0.5 rho C_d A |v - w| (v - w), the box falling face-on (it does not turn)
+    v, w, k = np.zeros(3), np.array([10.0, 0.0, 0.0]), 0.5 * 1.2 * 1.05 * 0.16 / 2.0
+    for _ in range(20_000):
+        rel = v - w
+        v = v + 1e-4 * (np.array([0.0, 0.0, -G]) - k * np.linalg.norm(rel) * rel)
+    assert box_v == pytest.approx(v, abs=0.05)
+
+
+def test_dryden_turbulence_is_seeded_per_body_and_shakes_a_hovering_drone():
+    def run(seed: int, w20: float) -> tuple[np.ndarray, np.ndarray]:
+        extra = f"  wind: {{speed_m_s: 5.0, turbulence_w20_m_s: {w20}}}\n"
+        world = big_world(drone("d1") + drone("d2", pose="{position_m: [10.0, 0.0, 0.3]}"), extra)
+        with Simulation(load_world_text(world, seed=seed)) as sim:
+            hover(sim, "d1", 15.0, 1.0)
+            hover(sim, "d2", 15.0, 9.0)
+            wind, pos = [], []
+            for _ in range(int(10.0 / sim.dt_s)):
+                sim.step()
+                wind.append(sim.fleet.wind_enu_m_s[[sim.row("d1"), sim.row("d2")]].copy())
+                pos.append(sim.position_enu_m("d1"))
+        return np.array(wind), np.array(pos)
+
+    wind_a, pos_a = run(1, 15.4)            # MIL-F-8785C moderate turbulence
+    wind_b, _ = run(1, 15.4)
+    wind_c, _ = run(2, 15.4)
+    _, pos_calm = run(1, 0.0)
+    assert np.array_equal(wind_a, wind_b)                                 # the same seed: the same gusts
+    assert not np.allclose(wind_a, wind_c)                                # another seed: other gusts
+    assert not np.allclose(wind_a[:, 0], wind_a[:, 1])                    # each body its own turbulence
+    assert np.all(np.abs(wind_a[:, :, :2].mean(axis=(0, 1)) - [5.0, 0.0]) < 3.0)
+    assert np.std(wind_a[:, 0, 2]) > 0.1                                  # vertical gusts too
+    spread = lambda p: np.std(p[:, :2], axis=0).sum()                     # noqa: E731
+    assert spread(pos_a) > 2.0 * spread(pos_calm)                         # the drone is shaken
+
+
+def test_a_gust_blows_as_the_1_minus_cosine_shape_over_its_time():
+    extra = "  wind: {gusts: [{start_s: 1.0, peak_m_s: 6.0, rise_time_s: 2.0, toward_deg: 90.0}]}\n"
+    with Simulation(load_world_text(big_world(drone("d1"), extra))) as sim:
+        row = sim.row("d1")
+        seen = {}
+        for _ in range(int(6.0 / sim.dt_s)):
+            t = sim.sim_time_s
+            sim.step()
+            seen[round(t, 4)] = sim.fleet.wind_enu_m_s[row].copy()
+    for t, speed in ((0.5, 0.0), (2.0, 3.0), (3.0, 6.0), (4.0, 3.0), (5.5, 0.0)):
+        assert seen[t] == pytest.approx([0.0, speed, 0.0], abs=1e-9)

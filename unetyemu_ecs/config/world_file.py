@@ -39,6 +39,7 @@ _NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 Gravity = Annotated[float, Ge(-30.0), Le(30.0)]                # [m/s^2]
 Offset = Annotated[float, Ge(-MAX_OFFSET_M), Le(MAX_OFFSET_M)]   # [m]
 PackageEdge = Annotated[float, Ge(0.02), Le(10.0)]             # [m]
+PACKAGE_DRAG_COEFF = 1.05   # a cube face-on (Hoerner, "Fluid-Dynamic Drag", 1965, ch. 3)
 SPAWN_TOLERANCE_M = 0.01   # bodies may touch (or sink this far into) what they stand on at t = 0
 
 
@@ -482,6 +483,9 @@ def _resolve_entity(group: str, i: int, item: VehicleSpec | PackageSpec, layout:
 
     components: dict[str, Any] = {}
     blocks: dict[str, Any] = dict(component_tables(params))       # the preset's built-in components
+    if kind == "package":                                          # a box in the wind: C_d 1.05 on each face
+        sx, sy, sz = item.size_m
+        blocks["aero_drag"] = {"drag_coeff": PACKAGE_DRAG_COEFF, "area_flu_m2": [sy * sz, sx * sz, sx * sy]}
     for key, block in item.components.items():                    # the world file's additions/overrides
         if block is None and key in registry.component_keys():
             issues.append(src.issue((group, i, "components", key), f"{key}: null is not a parameter block: give a "
