@@ -37,8 +37,10 @@ import numpy as np
 # Leishman (2006) ch. 2: empirical induced velocity in axial descent, v_i / v_h as a polynomial of V_c / v_h
 _VRS_FIT = (1.15, -1.125, -1.372, -1.718, -0.655)
 PROFILE_MU2_FACTOR = 4.65     # profile power grows as (1 + 4.65 mu^2) (Leishman ch. 5)
-_NEWTON_STEPS = 6
+_NEWTON_STEPS = 6             # from a cold start: converged to ~1e-12 (tests)
+_WARM_NEWTON_STEPS = 3        # from the previous step's inflow (which holds the vortex-ring correction)
 _BISECTION_STEPS = 48
+_NEGLIGIBLE_DESCENT_FRAC = 1e-4    # a descent slower than this x v_h changes v_i by < 1e-4 v_h: no ring
 
 
 def hover_induced_velocity_m_s(thrust_n: np.ndarray, air_density_kg_m3: np.ndarray,
@@ -47,22 +49,29 @@ def hover_induced_velocity_m_s(thrust_n: np.ndarray, air_density_kg_m3: np.ndarr
     return np.sqrt(np.maximum(thrust_n, 0.0) / (2.0 * air_density_kg_m3 * disk_area_m2))
 
 
-def _glauert_inflow_m_s(v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray, v_h_m_s: np.ndarray) -> np.ndarray:
+def _glauert_inflow_m_s(v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray, v_h_m_s: np.ndarray,
+                        guess_m_s: np.ndarray | None = None) -> np.ndarray:
     """Total inflow ``u = V_c + v_i`` of Glauert's relation ``u = V_c + v_h^2 / sqrt(V_h^2 + u^2)``.
 
-    The normal working state's root ``u > 0`` (Newton's method from above it) where it exists; in a
-    descent steeper than ``V_c = -v_h^2 / V_h`` there is none and the air flows up through the disk:
-    the root in ``(V_c, 0)`` (the windmill-brake state, by bisection). Both roots meet at ``u = 0`` on
-    that boundary, so the result is continuous.
+    The normal working state's root ``u > 0`` (Newton's method) where it exists; in a descent steeper
+    than ``V_c = -v_h^2 / V_h`` there is none and the air flows up through the disk: the root in
+    ``(V_c, 0)`` (the windmill-brake state, by bisection). Both roots meet at ``u = 0`` on that
+    boundary, so the result is continuous. Newton starts from ``guess_m_s`` where it is a plausible
+    inflow (the previous step's: three iterations then suffice), else from the axial closed form with
+    the in-plane speed folded into ``v_h`` (exact without in-plane speed).
     """
     vh2 = v_h_m_s * v_h_m_s
-    u = np.maximum(v_axial_m_s, 0.0) + v_h_m_s          # an upper bound of the positive root when V_c >= 0
-    for _ in range(_NEWTON_STEPS):
-        r2 = v_inplane_m_s * v_inplane_m_s + u * u
-        r = np.sqrt(np.maximum(r2, 1e-12))
-        f = u - v_axial_m_s - vh2 / r
-        df = 1.0 + vh2 * u / (r2 * r + 1e-12)
-        u = np.maximum(u - f / df, 1e-9)
+    vin2 = v_inplane_m_s * v_inplane_m_s
+    half = 0.5 * v_axial_m_s
+    cold = half + np.sqrt(half * half + vh2 * vh2 / (vh2 + vin2 + 1e-12))
+    if guess_m_s is None:
+        u, steps = cold, _NEWTON_STEPS
+    else:
+        u, steps = np.where(guess_m_s > 0.05 * v_h_m_s, guess_m_s, cold), _WARM_NEWTON_STEPS
+    for _ in range(steps):
+        r2 = vin2 + u * u
+        r = np.sqrt(r2 + 1e-12)
+        u = np.maximum(u - (u - v_axial_m_s - vh2 / r) / (1.0 + vh2 * u / (r2 * r + 1e-12)), 1e-9)
     upward = v_axial_m_s * v_inplane_m_s < -vh2           # no positive root: windmill-brake state
     if np.any(upward):
         vc, vh_in, vh2_in = (np.broadcast_to(a, u.shape)[upward] for a in (v_axial_m_s, v_inplane_m_s, vh2))
@@ -90,9 +99,11 @@ def _descent_induced_m_s(v_axial_m_s: np.ndarray, v_h_m_s: np.ndarray) -> np.nda
     return np.where(v_axial_m_s / vh > -2.0, ring * vh, windmill)
 
 
-def induced_velocity_m_s(thrust_n: np.ndarray, v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray,
-                         air_density_kg_m3: np.ndarray, disk_area_m2: np.ndarray) -> np.ndarray:
-    """Induced velocity ``v_i`` [m/s] of each rotor (scalars or any matching shapes; see the module docstring).
+def rotor_inflow_m_s(thrust_n: np.ndarray, v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray,
+                     air_density_kg_m3: np.ndarray, disk_area_m2: np.ndarray,
+                     guess_m_s: np.ndarray | None = None) -> np.ndarray:
+    """Total inflow ``u = V_c + v_i`` [m/s] through each rotor (scalars or any matching shapes; see the
+    module docstring); ``guess_m_s``: the previous step's inflow, to start the solver from.
 
     v_axial_m_s : air velocity along the rotor axis, positive when the rotor climbs into it [m/s]
     v_inplane_m_s : speed of the air in the disk plane (>= 0) [m/s]
@@ -105,16 +116,31 @@ def induced_velocity_m_s(thrust_n: np.ndarray, v_axial_m_s: np.ndarray, v_inplan
     v_axial_m_s = np.asarray(v_axial_m_s, dtype=float)
     v_inplane_m_s = np.asarray(v_inplane_m_s, dtype=float)
     v_h = hover_induced_velocity_m_s(np.asarray(thrust_n, dtype=float), air_density_kg_m3, disk_area_m2)
-    glauert = _glauert_inflow_m_s(v_axial_m_s, v_inplane_m_s, v_h) - v_axial_m_s
-    descending = v_axial_m_s < 0.0
+    u = _glauert_inflow_m_s(v_axial_m_s, v_inplane_m_s, v_h, guess_m_s)
+    descending = v_axial_m_s < -_NEGLIGIBLE_DESCENT_FRAC * v_h
     if not np.any(descending):
-        return glauert
+        return u
     weight = np.where(descending, np.clip(1.0 - v_inplane_m_s / np.maximum(v_h, 1e-9), 0.0, 1.0), 0.0)
     if not np.any(weight > 0.0):
-        return glauert
+        return u
     v_c = np.minimum(v_axial_m_s, 0.0)
-    axial_momentum = _glauert_inflow_m_s(v_c, np.zeros_like(v_c), v_h) - v_c
-    return glauert + weight * (_descent_induced_m_s(v_c, v_h) - axial_momentum)
+    half = 0.5 * v_c
+    axial_momentum = -half + np.sqrt(half * half + v_h * v_h)       # closed form of Glauert without V_h
+    return u + weight * (_descent_induced_m_s(v_c, v_h) - axial_momentum)
+
+
+def induced_velocity_m_s(thrust_n: np.ndarray, v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray,
+                         air_density_kg_m3: np.ndarray, disk_area_m2: np.ndarray) -> np.ndarray:
+    """Induced velocity ``v_i`` [m/s] of each rotor: :func:`rotor_inflow_m_s` less the axial air speed."""
+    return rotor_inflow_m_s(thrust_n, v_axial_m_s, v_inplane_m_s, air_density_kg_m3, disk_area_m2) \
+        - np.asarray(v_axial_m_s, dtype=float)
+
+
+def shaft_power_from_inflow_w(thrust_n: np.ndarray, inflow_m_s: np.ndarray, v_inplane_m_s: np.ndarray,
+                              profile_hover_w: np.ndarray, tip_speed_m_s: np.ndarray) -> np.ndarray:
+    """``T u + P_0h 4.65 (V_h / V_tip)^2`` [W]: induced and climb power plus the profile power's growth."""
+    mu = np.asarray(v_inplane_m_s) / tip_speed_m_s
+    return np.maximum(thrust_n, 0.0) * inflow_m_s + profile_hover_w * PROFILE_MU2_FACTOR * mu * mu
 
 
 def rotor_shaft_power_w(thrust_n: np.ndarray, v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray,
@@ -124,9 +150,8 @@ def rotor_shaft_power_w(thrust_n: np.ndarray, v_axial_m_s: np.ndarray, v_inplane
 
     Negative where the rotor extracts energy from the air (windmill brake state); callers clamp.
     """
-    v_i = induced_velocity_m_s(thrust_n, v_axial_m_s, v_inplane_m_s, air_density_kg_m3, disk_area_m2)
-    mu = v_inplane_m_s / tip_speed_m_s
-    return np.maximum(thrust_n, 0.0) * (v_axial_m_s + v_i) + profile_hover_w * PROFILE_MU2_FACTOR * mu * mu
+    u = rotor_inflow_m_s(thrust_n, v_axial_m_s, v_inplane_m_s, air_density_kg_m3, disk_area_m2)
+    return shaft_power_from_inflow_w(thrust_n, u, v_inplane_m_s, profile_hover_w, tip_speed_m_s)
 
 
 def profile_hover_power_w(solidity: np.ndarray, blade_drag_coeff: np.ndarray, air_density_kg_m3: np.ndarray,

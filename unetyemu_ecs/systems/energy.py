@@ -27,7 +27,7 @@ from ..components.flight import LIPO_CELL_NOMINAL_V, EnergyModel, QuadrotorMotor
 from ..control.battery_ecm import cell_ocv_v, energy_remaining_wh, pack_current_for_power_a, soh_frac, step_pack
 from ..control.energy import rotor_power_w
 from ..control.mixer import motor_positions_flu_m
-from ..control.rotor_power import profile_hover_power_w, rotor_shaft_power_w
+from ..control.rotor_power import profile_hover_power_w, rotor_inflow_m_s, shaft_power_from_inflow_w
 from ..phases import Phase
 from ..world import StepContext
 from .fleet_system import FleetSystem
@@ -45,7 +45,8 @@ class EnergySystem(FleetSystem):
     Phase: PAYLOAD_ENERGY (order 50). Reads: fleet.motor_thrust_n, vel_enu_m_s, wind_enu_m_s, R_enu_flu,
     rate_flu_rad_s, charging, charge_power_w. Writes: fleet.power_w, power_filt_w, energy_j (left),
     energy_used_j (delivered to the loads), soc_frac, remaining_time_s, low_battery, pack_voltage_v,
-    pack_current_a, pack_v_rc_v, motors_enabled (False once the pack cuts off).
+    pack_current_a, pack_v_rc_v, rotor_inflow_m_s (the solver's next start), motors_enabled (False once
+    the pack cuts off).
 
     A drone's battery starts at ``initial_soc_frac`` the first time the system sees it; an
     :class:`EnergyModel` replaced later changes the power from the next step on and keeps the charge.
@@ -148,8 +149,10 @@ class EnergySystem(FleetSystem):
         vy = v_flu[:, 1:2] + w[:, 2:3] * r[:, :, 0]
         v_axial = v_flu[:, 2:3] + w[:, 0:1] * r[:, :, 1] - w[:, 1:2] * r[:, :, 0]
         v_inplane = np.sqrt(vx * vx + vy * vy)
-        shaft = rotor_shaft_power_w(thrust, v_axial, v_inplane, self._rho[k][:, None], self._area[k][:, None],
-                                    self._profile_hover_w[k], self._tip_speed[k])
+        inflow = rotor_inflow_m_s(thrust, v_axial, v_inplane, self._rho[k][:, None], self._area[k][:, None],
+                                  guess_m_s=f.rotor_inflow_m_s[rows])
+        f.rotor_inflow_m_s[rows] = inflow
+        shaft = shaft_power_from_inflow_w(thrust, inflow, v_inplane, self._profile_hover_w[k], self._tip_speed[k])
         return np.maximum(shaft, 0.0) / self._eta[k][:, None]          # the ESCs do not regenerate
 
     def update(self, ctx: StepContext) -> None:
