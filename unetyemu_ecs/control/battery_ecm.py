@@ -103,14 +103,14 @@ class PackStep(NamedTuple):
 
 def cell_ocv_v(soc_frac: np.ndarray) -> np.ndarray:
     """Open-circuit voltage of one cell [V] at ``soc_frac`` (any shape, clipped to [0, 1]); Chen 2006."""
-    s = np.clip(soc_frac, 0.0, 1.0)
+    s = np.minimum(np.maximum(soc_frac, 0.0), 1.0)
     c0, c1, c2, c3 = _OCV_POLY_V
     return _OCV_EXP_V * np.exp(_OCV_EXP_RATE * s) + c0 + s * (c1 + s * (c2 + s * c3))
 
 
 def _cell_ocv_integral_v(soc_frac: np.ndarray) -> np.ndarray:
     """``int_0^soc OCV(s) ds`` [V] (times capacity in Ah: open-circuit energy in Wh)."""
-    s = np.clip(soc_frac, 0.0, 1.0)
+    s = np.minimum(np.maximum(soc_frac, 0.0), 1.0)
     c0, c1, c2, c3 = _OCV_POLY_V
     exp_part = _OCV_EXP_V / _OCV_EXP_RATE * (np.exp(_OCV_EXP_RATE * s) - 1.0)
     return exp_part + s * (c0 + s * (c1 / 2 + s * (c2 / 3 + s * c3 / 4)))
@@ -148,11 +148,12 @@ def step_pack(soc_frac: np.ndarray, v_rc_v: np.ndarray, current_a: np.ndarray, d
     exact solution of ``dv/dt = -v / (R1 C1) + I / C1``: ``v' = v e^(-dt/tau) + I R1 (1 - e^(-dt/tau))``.
     Parameters are (M,) arrays or scalars; the terminal voltage is taken at the end of the step.
     """
-    soc = np.clip(soc_frac - current_a * dt_s / (3600.0 * capacity_eff_ah), 0.0, 1.0)
+    soc = np.minimum(np.maximum(soc_frac - current_a * dt_s / (3600.0 * capacity_eff_ah), 0.0), 1.0)
     decay = np.exp(-dt_s / tau1_s)
     v_rc = v_rc_v * decay + current_a * r1_pack_ohm * (1.0 - decay)
     terminal = pack_terminal_v(soc, v_rc, current_a, r0_pack_ohm, cells_series)
-    return PackStep(soc, v_rc, terminal, np.broadcast_to(current_a, soc.shape).astype(float))
+    current = current_a if np.shape(current_a) == soc.shape else np.broadcast_to(current_a, soc.shape)
+    return PackStep(soc, v_rc, terminal, np.asarray(current, dtype=float))
 
 
 def pack_cut_off(terminal_v: np.ndarray, soc_frac: np.ndarray, cells_series: np.ndarray,

@@ -38,7 +38,7 @@ import numpy as np
 _VRS_FIT = (1.15, -1.125, -1.372, -1.718, -0.655)
 PROFILE_MU2_FACTOR = 4.65     # profile power grows as (1 + 4.65 mu^2) (Leishman ch. 5)
 _NEWTON_STEPS = 6             # from a cold start: converged to ~1e-12 (tests)
-_WARM_NEWTON_STEPS = 3        # from the previous step's inflow (which holds the vortex-ring correction)
+_WARM_NEWTON_STEPS = 2        # from the previous step's root
 _BISECTION_STEPS = 48
 _NEGLIGIBLE_DESCENT_FRAC = 1e-4    # a descent slower than this x v_h changes v_i by < 1e-4 v_h: no ring
 
@@ -49,7 +49,7 @@ def hover_induced_velocity_m_s(thrust_n: np.ndarray, air_density_kg_m3: np.ndarr
     return np.sqrt(np.maximum(thrust_n, 0.0) / (2.0 * air_density_kg_m3 * disk_area_m2))
 
 
-def _glauert_inflow_m_s(v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray, v_h_m_s: np.ndarray,
+def glauert_inflow_m_s(v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray, v_h_m_s: np.ndarray,
                         guess_m_s: np.ndarray | None = None) -> np.ndarray:
     """Total inflow ``u = V_c + v_i`` of Glauert's relation ``u = V_c + v_h^2 / sqrt(V_h^2 + u^2)``.
 
@@ -57,21 +57,22 @@ def _glauert_inflow_m_s(v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray, v_h_
     than ``V_c = -v_h^2 / V_h`` there is none and the air flows up through the disk: the root in
     ``(V_c, 0)`` (the windmill-brake state, by bisection). Both roots meet at ``u = 0`` on that
     boundary, so the result is continuous. Newton starts from ``guess_m_s`` where it is a plausible
-    inflow (the previous step's: three iterations then suffice), else from the axial closed form with
+    inflow (the previous step's root: two iterations then suffice), else from the axial closed form with
     the in-plane speed folded into ``v_h`` (exact without in-plane speed).
     """
     vh2 = v_h_m_s * v_h_m_s
     vin2 = v_inplane_m_s * v_inplane_m_s
-    half = 0.5 * v_axial_m_s
-    cold = half + np.sqrt(half * half + vh2 * vh2 / (vh2 + vin2 + 1e-12))
-    if guess_m_s is None:
-        u, steps = cold, _NEWTON_STEPS
-    else:
-        u, steps = np.where(guess_m_s > 0.05 * v_h_m_s, guess_m_s, cold), _WARM_NEWTON_STEPS
+    plausible = None if guess_m_s is None else guess_m_s > 0.05 * v_h_m_s
+    if plausible is not None and np.all(plausible):
+        u, steps = guess_m_s, _WARM_NEWTON_STEPS
+    else:                                                    # a first step, or a root near u = 0: from cold
+        half = 0.5 * v_axial_m_s
+        cold = half + np.sqrt(half * half + vh2 * vh2 / (vh2 + vin2 + 1e-12))
+        u, steps = (cold if plausible is None else np.where(plausible, guess_m_s, cold)), _NEWTON_STEPS
     for _ in range(steps):
-        r2 = vin2 + u * u
-        r = np.sqrt(r2 + 1e-12)
-        u = np.maximum(u - (u - v_axial_m_s - vh2 / r) / (1.0 + vh2 * u / (r2 * r + 1e-12)), 1e-9)
+        r2 = vin2 + u * u + 1e-12
+        r = np.sqrt(r2)
+        u = np.maximum(u - (u - v_axial_m_s - vh2 / r) / (1.0 + vh2 * u / (r2 * r)), 1e-9)
     upward = v_axial_m_s * v_inplane_m_s < -vh2           # no positive root: windmill-brake state
     if np.any(upward):
         vc, vh_in, vh2_in = (np.broadcast_to(a, u.shape)[upward] for a in (v_axial_m_s, v_inplane_m_s, vh2))
@@ -99,34 +100,37 @@ def _descent_induced_m_s(v_axial_m_s: np.ndarray, v_h_m_s: np.ndarray) -> np.nda
     return np.where(v_axial_m_s / vh > -2.0, ring * vh, windmill)
 
 
+def vortex_ring_correction_m_s(v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray, v_h_m_s: np.ndarray) -> np.ndarray:
+    """What descent adds to Glauert's inflow [m/s]: the difference between the axial-descent curve and
+    momentum theory in axial flight, with weight ``max(0, 1 - V_h / v_h)``: zero at ``V_c = 0``
+    (continuous with climb at any in-plane speed), the whole axial curve without in-plane speed. A
+    scalar 0 where no rotor descends faster than ``1e-4 v_h`` (the correction would be < 1e-4 v_h)."""
+    descending = v_axial_m_s < -_NEGLIGIBLE_DESCENT_FRAC * v_h_m_s
+    if not np.any(descending):
+        return np.float64(0.0)
+    weight = np.where(descending, np.minimum(np.maximum(1.0 - v_inplane_m_s / np.maximum(v_h_m_s, 1e-9), 0.0), 1.0),
+                      0.0)
+    if not np.any(weight > 0.0):
+        return np.float64(0.0)
+    v_c = np.minimum(v_axial_m_s, 0.0)
+    half = 0.5 * v_c
+    axial_momentum = -half + np.sqrt(half * half + v_h_m_s * v_h_m_s)     # closed form of Glauert without V_h
+    return weight * (_descent_induced_m_s(v_c, v_h_m_s) - axial_momentum)
+
+
 def rotor_inflow_m_s(thrust_n: np.ndarray, v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray,
-                     air_density_kg_m3: np.ndarray, disk_area_m2: np.ndarray,
-                     guess_m_s: np.ndarray | None = None) -> np.ndarray:
+                     air_density_kg_m3: np.ndarray, disk_area_m2: np.ndarray) -> np.ndarray:
     """Total inflow ``u = V_c + v_i`` [m/s] through each rotor (scalars or any matching shapes; see the
-    module docstring); ``guess_m_s``: the previous step's inflow, to start the solver from.
+    module docstring): :func:`glauert_inflow_m_s` plus :func:`vortex_ring_correction_m_s`.
 
     v_axial_m_s : air velocity along the rotor axis, positive when the rotor climbs into it [m/s]
     v_inplane_m_s : speed of the air in the disk plane (>= 0) [m/s]
-
-    In descent the vortex-ring correction is the difference between the axial-descent curve and
-    momentum theory in axial flight, added to Glauert's value with weight ``max(0, 1 - V_h / v_h)``:
-    zero at ``V_c = 0`` (continuous with climb at any in-plane speed) and exactly the axial curve
-    without in-plane speed.
     """
     v_axial_m_s = np.asarray(v_axial_m_s, dtype=float)
     v_inplane_m_s = np.asarray(v_inplane_m_s, dtype=float)
     v_h = hover_induced_velocity_m_s(np.asarray(thrust_n, dtype=float), air_density_kg_m3, disk_area_m2)
-    u = _glauert_inflow_m_s(v_axial_m_s, v_inplane_m_s, v_h, guess_m_s)
-    descending = v_axial_m_s < -_NEGLIGIBLE_DESCENT_FRAC * v_h
-    if not np.any(descending):
-        return u
-    weight = np.where(descending, np.clip(1.0 - v_inplane_m_s / np.maximum(v_h, 1e-9), 0.0, 1.0), 0.0)
-    if not np.any(weight > 0.0):
-        return u
-    v_c = np.minimum(v_axial_m_s, 0.0)
-    half = 0.5 * v_c
-    axial_momentum = -half + np.sqrt(half * half + v_h * v_h)       # closed form of Glauert without V_h
-    return u + weight * (_descent_induced_m_s(v_c, v_h) - axial_momentum)
+    return glauert_inflow_m_s(v_axial_m_s, v_inplane_m_s, v_h) + vortex_ring_correction_m_s(v_axial_m_s,
+                                                                                             v_inplane_m_s, v_h)
 
 
 def induced_velocity_m_s(thrust_n: np.ndarray, v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray,

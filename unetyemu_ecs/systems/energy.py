@@ -27,7 +27,8 @@ from ..components.flight import LIPO_CELL_NOMINAL_V, EnergyModel, QuadrotorMotor
 from ..control.battery_ecm import cell_ocv_v, energy_remaining_wh, pack_current_for_power_a, soh_frac, step_pack
 from ..control.energy import rotor_power_w
 from ..control.mixer import motor_positions_flu_m
-from ..control.rotor_power import profile_hover_power_w, rotor_inflow_m_s, shaft_power_from_inflow_w
+from ..control.rotor_power import (glauert_inflow_m_s, hover_induced_velocity_m_s, profile_hover_power_w,
+                                   shaft_power_from_inflow_w, vortex_ring_correction_m_s)
 from ..phases import Phase
 from ..world import StepContext
 from .fleet_system import FleetSystem
@@ -45,7 +46,7 @@ class EnergySystem(FleetSystem):
     Phase: PAYLOAD_ENERGY (order 50). Reads: fleet.motor_thrust_n, vel_enu_m_s, wind_enu_m_s, R_enu_flu,
     rate_flu_rad_s, charging, charge_power_w. Writes: fleet.power_w, power_filt_w, energy_j (left),
     energy_used_j (delivered to the loads), soc_frac, remaining_time_s, low_battery, pack_voltage_v,
-    pack_current_a, pack_v_rc_v, rotor_inflow_m_s (the solver's next start), motors_enabled (False once
+    pack_current_a, pack_v_rc_v, glauert_inflow_m_s (the solver's next start), motors_enabled (False once
     the pack cuts off).
 
     A drone's battery starts at ``initial_soc_frac`` the first time the system sees it; an
@@ -81,7 +82,10 @@ class EnergySystem(FleetSystem):
         for ent in self.entities.tolist():
             motors = esper.try_component(ent, QuadrotorMotors)
             arms.append(motors.arm_length_m if motors is not None else 0.0)
-        self._rotor_pos_flu_m = motor_positions_flu_m(np.array(arms))              # (M, 4, 3)
+        pos = motor_positions_flu_m(np.array(arms))                                  # (M, 4, 3), z = 0
+        # a rotor's axial velocity from the body rates, (w x r)_z = w_x r_y - w_y r_x: [w_x, w_y] @ this
+        self._axial_per_rate = np.stack([pos[:, :, 1], -pos[:, :, 0]], axis=1)     # (M, 2, 4) [m]
+        self._rho_col, self._area_col, self._eta_col = self._rho[:, None], self._area[:, None], self._eta[:, None]
         # battery
         self._lipo = np.array([c.battery == "lipo" for c in comps])
         self._any_lipo, self._all_lipo = bool(self._lipo.any()), bool(self._lipo.all())
@@ -138,22 +142,22 @@ class EnergySystem(FleetSystem):
         return rotors.sum(axis=1) + self._p0[k]
 
     def _momentum_power_w(self, f, rows: np.ndarray | slice, k: np.ndarray | slice, thrust: np.ndarray) -> np.ndarray:
-        """(M, 4) [W] electrical power of each rotor from momentum theory with the air through its disk."""
+        """(M, 4) [W] electrical power of each rotor from momentum theory with the air through its disk.
+
+        Axial: the body's velocity relative to the air along its z axis plus each rotor's own from the
+        roll and pitch rates; in-plane: the body's (the yaw rate's in-plane ``w x r`` is left out: at most
+        a few tenths of a m/s, second order in the in-plane speed's effect on power).
+        """
         v_rel_enu = f.vel_enu_m_s[rows] - f.wind_enu_m_s[rows]
-        R = f.R_enu_flu[rows]
-        v_flu = (v_rel_enu[:, None, :] @ R)[:, 0, :]                    # R^T v: body FLU
-        w = f.rate_flu_rad_s[rows]
-        r = self._rotor_pos_flu_m[k]                                     # (M, 4, 3), z = 0
-        # rotor velocity = body velocity + w x r (r has no z: only its x, y enter)
-        vx = v_flu[:, 0:1] - w[:, 2:3] * r[:, :, 1]
-        vy = v_flu[:, 1:2] + w[:, 2:3] * r[:, :, 0]
-        v_axial = v_flu[:, 2:3] + w[:, 0:1] * r[:, :, 1] - w[:, 1:2] * r[:, :, 0]
-        v_inplane = np.sqrt(vx * vx + vy * vy)
-        inflow = rotor_inflow_m_s(thrust, v_axial, v_inplane, self._rho[k][:, None], self._area[k][:, None],
-                                  guess_m_s=f.rotor_inflow_m_s[rows])
-        f.rotor_inflow_m_s[rows] = inflow
+        v_flu = (v_rel_enu[:, None, :] @ f.R_enu_flu[rows])[:, 0, :]                 # R^T v: body FLU
+        v_axial = v_flu[:, 2:3] + (f.rate_flu_rad_s[rows][:, None, :2] @ self._axial_per_rate[k])[:, 0, :]
+        v_inplane = np.sqrt(v_flu[:, 0:1] * v_flu[:, 0:1] + v_flu[:, 1:2] * v_flu[:, 1:2])    # (M, 1)
+        v_h = hover_induced_velocity_m_s(thrust, self._rho_col[k], self._area_col[k])
+        root = glauert_inflow_m_s(v_axial, v_inplane, v_h, guess_m_s=f.glauert_inflow_m_s[rows])
+        f.glauert_inflow_m_s[rows] = root
+        inflow = root + vortex_ring_correction_m_s(v_axial, v_inplane, v_h)
         shaft = shaft_power_from_inflow_w(thrust, inflow, v_inplane, self._profile_hover_w[k], self._tip_speed[k])
-        return np.maximum(shaft, 0.0) / self._eta[k][:, None]          # the ESCs do not regenerate
+        return np.maximum(shaft, 0.0) / self._eta_col[k]          # the ESCs do not regenerate
 
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet

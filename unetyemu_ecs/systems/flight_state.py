@@ -194,7 +194,7 @@ FLIGHT_ARRAYS: dict[str, tuple[tuple[int, ...], type, float]] = {
     "pack_voltage_v": ((), np.float64, 0.0),          # terminal voltage of the battery pack
     "pack_current_a": ((), np.float64, 0.0),          # + = discharging
     "pack_v_rc_v": ((), np.float64, 0.0),             # voltage across the pack's RC pair (LiPo model)
-    "rotor_inflow_m_s": ((4,), np.float64, 0.0),      # air through each rotor disk, V_c + v_i (momentum model)
+    "glauert_inflow_m_s": ((4,), np.float64, 0.0),    # Glauert's inflow V_c + v_i of each rotor (momentum model)
     # payload bay (PayloadSystem)
     "payload_kg": ((), np.float64, 0.0),
     "payload_entity": ((), np.int64, -1),             # esper entity of the package carried (-1: none)
