@@ -23,6 +23,11 @@ class QuadrotorMotors:
     arm_length_m: Annotated[float, Gt(0.0), Le(10.0)]                 # centre of mass -> motor axis [m]
     yaw_moment_coeff_m: Annotated[float, Ge(0.0), Le(1.0)]            # rotor reaction torque / thrust [m]
     motor_tau_s: Annotated[float, Ge(0.0), Le(1.0)]                   # first-order spin-up time constant, 0 = none [s]
+    # more thrust per command near a surface below (Cheeseman & Bennett 1955: x1/(1 - (R/4z)^2), capped at
+    # 4/3, none above 4 R; R from ``energy.rotor_radius_m``, no ``energy``: none); control.ground_effect.
+    # Off by default: armed on the ground, the stack holds position with hover thrust, which the
+    # ground effect turns into a lift-off (tests/integration/test_ground_effect.py)
+    ground_effect: bool = False
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

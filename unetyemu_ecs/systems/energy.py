@@ -43,7 +43,7 @@ def _column(items: list[EnergyModel], name: str) -> np.ndarray:
 class EnergySystem(FleetSystem):
     """Power and battery of every drone with an :class:`EnergyModel`.
 
-    Phase: PAYLOAD_ENERGY (order 50). Reads: fleet.motor_thrust_n, vel_enu_m_s, wind_enu_m_s, R_enu_flu,
+    Phase: PAYLOAD_ENERGY (order 50). Reads: fleet.motor_thrust_n, ground_effect_factor, vel_enu_m_s, wind_enu_m_s, R_enu_flu,
     rate_flu_rad_s, charging, charge_power_w. Writes: fleet.power_w, power_filt_w, energy_j (left),
     energy_used_j (delivered to the loads), soc_frac, remaining_time_s, low_battery, pack_voltage_v,
     pack_current_a, pack_v_rc_v, glauert_inflow_m_s (the solver's next start), motors_enabled (False once
@@ -131,7 +131,8 @@ class EnergySystem(FleetSystem):
 
     def _power_w(self, f, rows: np.ndarray | slice, k: np.ndarray | slice = slice(None)) -> np.ndarray:
         """Electrical power [W] of drones ``rows`` (parameters ``k``): rotors over eta, plus P0."""
-        thrust = f.motor_thrust_n[rows]
+        # the power of the thrust out of ground effect: near the ground the same power lifts more
+        thrust = f.motor_thrust_n[rows] / f.ground_effect_factor[rows]
         rho, area, eta = self._rho[k], self._area[k], self._eta[k]
         if self._all_momentum:
             rotors = self._momentum_power_w(f, rows, k, thrust)

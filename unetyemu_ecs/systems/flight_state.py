@@ -181,7 +181,8 @@ FLIGHT_ARRAYS: dict[str, tuple[tuple[int, ...], type, float]] = {
     "motor_frac_cmd": ((4,), np.float64, 0.0),        # the mixer's output: FL, FR, BR, BL fractions of F_max
     # motors (MotorSystem)
     "motor_thrust_cmd_n": ((4,), np.float64, 0.0),    # FL, FR, BR, BL
-    "motor_thrust_n": ((4,), np.float64, 0.0),        # after lag: what is applied
+    "motor_thrust_n": ((4,), np.float64, 0.0),        # after lag: what is applied (ground effect included)
+    "ground_effect_factor": ((4,), np.float64, 1.0),  # applied / out-of-ground-effect thrust (1 = none)
     # energy (EnergySystem)
     "power_w": ((), np.float64, 0.0),
     "power_filt_w": ((), np.float64, 0.0),
