@@ -60,10 +60,11 @@ def glauert_inflow_m_s(v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray, v_h_m
     inflow (the previous step's root: two iterations then suffice), else from the axial closed form with
     the in-plane speed folded into ``v_h`` (exact without in-plane speed).
     """
+    v_axial_m_s, v_inplane_m_s, v_h_m_s = np.asarray(v_axial_m_s), np.asarray(v_inplane_m_s), np.asarray(v_h_m_s)
     vh2 = v_h_m_s * v_h_m_s
     vin2 = v_inplane_m_s * v_inplane_m_s
     plausible = None if guess_m_s is None else guess_m_s > 0.05 * v_h_m_s
-    if plausible is not None and np.all(plausible):
+    if plausible is not None and plausible.all():
         u, steps = guess_m_s, _WARM_NEWTON_STEPS
     else:                                                    # a first step, or a root near u = 0: from cold
         half = 0.5 * v_axial_m_s
@@ -74,7 +75,7 @@ def glauert_inflow_m_s(v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray, v_h_m
         r = np.sqrt(r2)
         u = np.maximum(u - (u - v_axial_m_s - vh2 / r) / (1.0 + vh2 * u / (r2 * r)), 1e-9)
     upward = v_axial_m_s * v_inplane_m_s < -vh2           # no positive root: windmill-brake state
-    if np.any(upward):
+    if upward.any():
         vc, vh_in, vh2_in = (np.broadcast_to(a, u.shape)[upward] for a in (v_axial_m_s, v_inplane_m_s, vh2))
         lo, hi = vc.copy(), np.zeros_like(vc)               # F(lo) < 0 < F(hi)
         for _ in range(_BISECTION_STEPS):
@@ -95,9 +96,12 @@ def _descent_induced_m_s(v_axial_m_s: np.ndarray, v_h_m_s: np.ndarray) -> np.nda
     fit = k0 + x * (k1 + x * (k2 + x * (k3 + x * k4)))
     fit_at_minus2 = k0 - 2 * k1 + 4 * k2 - 8 * k3 + 16 * k4
     ring = fit - (k0 - 1.0) - (fit_at_minus2 - (k0 - 1.0) - 1.0) * (-x / 2.0)   # 1 at x = 0 and at x = -2
+    beyond = v_axial_m_s / vh <= -2.0
+    if not beyond.any():
+        return ring * vh
     half = -0.5 * v_axial_m_s
     windmill = half - np.sqrt(np.maximum(half * half - vh * vh, 0.0))
-    return np.where(v_axial_m_s / vh > -2.0, ring * vh, windmill)
+    return np.where(beyond, windmill, ring * vh)
 
 
 def vortex_ring_correction_m_s(v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray, v_h_m_s: np.ndarray) -> np.ndarray:
@@ -105,12 +109,12 @@ def vortex_ring_correction_m_s(v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarra
     momentum theory in axial flight, with weight ``max(0, 1 - V_h / v_h)``: zero at ``V_c = 0``
     (continuous with climb at any in-plane speed), the whole axial curve without in-plane speed. A
     scalar 0 where no rotor descends faster than ``1e-4 v_h`` (the correction would be < 1e-4 v_h)."""
-    descending = v_axial_m_s < -_NEGLIGIBLE_DESCENT_FRAC * v_h_m_s
-    if not np.any(descending):
+    descending = np.asarray(v_axial_m_s < -_NEGLIGIBLE_DESCENT_FRAC * v_h_m_s)
+    if not descending.any():
         return np.float64(0.0)
     weight = np.where(descending, np.minimum(np.maximum(1.0 - v_inplane_m_s / np.maximum(v_h_m_s, 1e-9), 0.0), 1.0),
                       0.0)
-    if not np.any(weight > 0.0):
+    if not (weight > 0.0).any():
         return np.float64(0.0)
     v_c = np.minimum(v_axial_m_s, 0.0)
     half = 0.5 * v_c
