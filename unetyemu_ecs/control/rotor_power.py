@@ -169,6 +169,7 @@ def profile_hover_power_w(solidity: np.ndarray, blade_drag_coeff: np.ndarray, ai
 
 
 def climb_to_hover_power_ratio(v_climb_m_s: np.ndarray, v_h_m_s: np.ndarray) -> np.ndarray:
-    """Textbook axial-climb power ratio ``P_c / P_h = V_c/(2 v_h) + sqrt((V_c/(2 v_h))^2 + 1)`` (Leishman ch. 2, axial climb)."""
+    """Textbook axial-climb power ratio ``P_c / P_h = V_c/(2 v_h) + sqrt((V_c/(2 v_h))^2 + 1)``
+    (Leishman ch. 2, axial climb)."""
     half = np.asarray(v_climb_m_s) / (2.0 * np.asarray(v_h_m_s))
     return half + np.sqrt(half * half + 1.0)

@@ -43,11 +43,11 @@ def _column(items: list[EnergyModel], name: str) -> np.ndarray:
 class EnergySystem(FleetSystem):
     """Power and battery of every drone with an :class:`EnergyModel`.
 
-    Phase: PAYLOAD_ENERGY (order 50). Reads: fleet.motor_thrust_n, ground_effect_factor, vel_enu_m_s, wind_enu_m_s, R_enu_flu,
-    rate_flu_rad_s, charging, charge_power_w. Writes: fleet.power_w, power_filt_w, energy_j (left),
-    energy_used_j (delivered to the loads), soc_frac, remaining_time_s, low_battery, pack_voltage_v,
-    pack_current_a, pack_v_rc_v, glauert_inflow_m_s (the solver's next start), motors_enabled (False once
-    the pack cuts off).
+    Phase: PAYLOAD_ENERGY (order 50). Reads: fleet.motor_thrust_n, ground_effect_factor, vel_enu_m_s,
+    wind_enu_m_s, R_enu_flu, rate_flu_rad_s, charging, charge_power_w. Writes: fleet.power_w,
+    power_filt_w, energy_j (left), energy_used_j (delivered to the loads), soc_frac, remaining_time_s,
+    low_battery, pack_voltage_v, pack_current_a, pack_v_rc_v, glauert_inflow_m_s (the solver's next
+    start), motors_enabled (False once the pack cuts off).
 
     A drone's battery starts at ``initial_soc_frac`` the first time the system sees it; an
     :class:`EnergyModel` replaced later changes the power from the next step on and keeps the charge.
@@ -90,15 +90,14 @@ class EnergySystem(FleetSystem):
         self._lipo = np.array([c.battery == "lipo" for c in comps])
         self._any_lipo, self._all_lipo = bool(self._lipo.any()), bool(self._lipo.all())
         self._cells = col("cells_series")
-        self._capacity_eff_ah = np.array([c.design_capacity_ah for c in comps]) * soh_frac(col("cycles"), col("cycle_life"), col("eol_capacity_frac"))
+        self._capacity_eff_ah = (np.array([c.design_capacity_ah for c in comps])
+                                 * soh_frac(col("cycles"), col("cycle_life"), col("eol_capacity_frac")))
         self._r0 = self._cells * col("cell_r0_ohm")
         self._r1 = self._cells * col("cell_r1_ohm")
         self._rc_tau = col("rc_tau_s")
         self._cutoff_v = self._cells * col("cell_cutoff_v")
         self._ideal_cap_j = col("battery_wh") * J_PER_WH
         self._ideal_v = self._cells * LIPO_CELL_NOMINAL_V
-        self._full_j = np.where(self._lipo, energy_remaining_wh(1.0, self._capacity_eff_ah, self._cells) * J_PER_WH,
-                                self._ideal_cap_j)
         new = [k for k, ent in enumerate(self.entities.tolist()) if ent not in self._initialised]
         if new:
             self._fill(ctx, np.array(new, dtype=np.intp), comps)

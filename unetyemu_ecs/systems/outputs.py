@@ -21,9 +21,9 @@ from .flight_state import FlightMode, LandedState, NavState
 
 POSE_COLUMNS = ("time_s", "x_m", "y_m", "z_m", "roll_deg", "pitch_deg", "yaw_deg", "lat_deg", "lon_deg",
                 "alt_m", "vx_m_s", "vy_m_s", "vz_m_s", "speed_m_s")
-FLIGHT_COLUMNS = ("mode", "nav_state", "landed_state", "thrust_fl_n", "thrust_fr_n", "thrust_br_n", "thrust_bl_n", "thrust_total_n", "power_w",
-                  "energy_used_wh", "battery_wh", "soc_frac", "pack_voltage_v", "pack_current_a", "remaining_time_s", "payload_kg", "mission_step",
-                  "mission_step_type")
+FLIGHT_COLUMNS = ("mode", "nav_state", "landed_state", "thrust_fl_n", "thrust_fr_n", "thrust_br_n", "thrust_bl_n",
+                  "thrust_total_n", "power_w", "energy_used_wh", "battery_wh", "soc_frac", "pack_voltage_v",
+                  "pack_current_a", "remaining_time_s", "payload_kg", "mission_step", "mission_step_type")
 CAR_COLUMNS = ("drive_mode", "throttle", "brake", "steer_deg", "speed_fwd_m_s", "speed_sp_m_s")
 
 
