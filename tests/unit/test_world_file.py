@@ -173,3 +173,24 @@ def test_a_sensor_topic_that_is_not_an_absolute_ros2_name_is_reported_and_ros2_s
     (drone,) = world.vehicles
     assert drone.ros2 is False and drone.components["imu"].ros2 is False       # the vehicle takes its sensors along
     assert drone.components["imu"].topic == "/d1/imu_fast"
+
+
+def test_bad_air_and_wind_are_reported_with_their_lines():
+    text = GOOD.replace("  physics_hz: 240\n", """  physics_hz: 240
+  air: {temperature_c: 150, density_kg_m3: 0}
+  wind: {speed_m_s: 80, turbulence_w20_m_s: -1, gusts: [{start_s: 1, peak_m_s: 3, rise_time_s: 0}]}
+""")
+    issues = _issues(text)
+    assert "w.yaml:4: world.air.temperature_c: must be <= 60, got 150.0" in issues
+    assert "w.yaml:4: world.air.density_kg_m3: must be >= 0.01, got 0.0" in issues
+    assert "w.yaml:5: world.wind.speed_m_s: must be <= 50, got 80.0" in issues
+    assert "w.yaml:5: world.wind.turbulence_w20_m_s: must be >= 0, got -1.0" in issues
+    assert "w.yaml:5: world.wind.gusts[0].rise_time_s: must be > 0, got 0.0" in issues
+
+
+def test_unknown_energy_models_and_an_impossible_pack_are_reported_naming_the_choices():
+    issues = _issues(GOOD + "    components:\n      energy: {model: blade_element, battery: nicd, cells_series: 0}\n")
+    assert any(i.startswith("w.yaml:18: vehicles[0].components.energy.model: ") and "hover_actuator_disk" in i
+               for i in issues), issues
+    assert any(i.startswith("w.yaml:18: vehicles[0].components.energy.battery: ") and "lipo" in i for i in issues)
+    assert "w.yaml:18: vehicles[0].components.energy.cells_series: must be >= 1, got 0" in issues
