@@ -250,3 +250,20 @@ def test_a_gust_blows_as_the_1_minus_cosine_shape_over_its_time():
             seen[round(t, 4)] = sim.fleet.wind_enu_m_s[row].copy()
     for t, speed in ((0.5, 0.0), (2.0, 3.0), (3.0, 6.0), (4.0, 3.0), (5.5, 0.0)):
         assert seen[t] == pytest.approx([0.0, speed, 0.0], abs=1e-9)
+
+
+def test_with_a_rated_voltage_the_motors_maximum_thrust_follows_the_pack_as_voltage_squared():
+    ratios = {}
+    for soc in (1.0, 0.15):
+        comps = f"      motors: {{rated_voltage_v: 22.2}}\n      energy: {{initial_soc_frac: {soc}}}\n"
+        with Simulation(load_world_text(big_world(drone("d1", components=comps)))) as sim:
+            hover(sim, "d1", 10.0, 8.0)
+            f, row = sim.fleet, sim.row("d1")
+            volts = f.pack_voltage_v[row]
+            sim.step()
+            # the motors' command per unit of mixer output is F_max (V / V_rated)^2, V from the step before
+            f_max_n = f.motor_thrust_cmd_n[row] / f.motor_frac_cmd[row]
+            assert f_max_n == pytest.approx(np.full(4, 55.0 * (volts / 22.2) ** 2), rel=1e-9)
+            assert abs(sim.position_enu_m("d1")[2] - 10.0) < 0.1           # it still hovers
+            ratios[soc] = f_max_n[0] / 55.0
+    assert ratios[1.0] > 1.15 and ratios[0.15] < ratios[1.0] - 0.1        # a full pack lifts more than a low one

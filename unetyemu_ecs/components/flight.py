@@ -28,6 +28,11 @@ class QuadrotorMotors:
     # Off by default: armed on the ground, the stack holds position with hover thrust, which the
     # ground effect turns into a lift-off (tests/integration/test_ground_effect.py)
     ground_effect: bool = False
+    # the pack voltage at which max_thrust_per_motor_n is rated: given, each motor's maximum thrust follows
+    # the battery, (V_pack / rated_voltage_v)^2 (a motor's top speed is K_v V and thrust goes as speed^2),
+    # so a sagging or emptying pack lifts less; none: a fixed maximum. Range: up to an eVTOL's 1 kV pack
+    # (a 6S drone pack is 22.2 V nominal)
+    rated_voltage_v: Annotated[float, Gt(0.0), Le(1_000.0)] | None = None
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

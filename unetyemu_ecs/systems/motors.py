@@ -44,7 +44,8 @@ class MotorSystem(FleetSystem):
     """Lag and apply the mixer's motor thrusts for every quadrotor in one pass.
 
     Phase: ACTUATE (order 20, after the mixer layer and the wind). Reads: fleet.motor_frac_cmd,
-    flight_mode, motors_enabled, R_enu_flu; for ground effect also pos_enu_m, vel_enu_m_s, wind_enu_m_s
+    flight_mode, motors_enabled, R_enu_flu, pack_voltage_v (``motors.rated_voltage_v``: the maximum
+    thrust follows the pack, ``(V / V_rated)^2``, with the voltage of the previous step); for ground effect also pos_enu_m, vel_enu_m_s, wind_enu_m_s
     and the scene layout. Writes: fleet.motor_thrust_cmd_n, motor_thrust_n (applied, ground effect
     included), ground_effect_factor (declared here: (4,) per motor, 1 = none); adds the rotors'
     resultant force and torque to force_cmd_enu_n and torque_cmd_enu_n_m (applied in PHYSICS).
@@ -62,6 +63,10 @@ class MotorSystem(FleetSystem):
     def gather(self, ctx: StepContext) -> None:
         (comps,) = self.components
         self._f_max = np.array([c.max_thrust_per_motor_n for c in comps])
+        rated = np.array([np.nan if c.rated_voltage_v is None else c.rated_voltage_v for c in comps])
+        self._follows_pack = ~np.isnan(rated)                    # max thrust follows the pack voltage
+        self._any_follows_pack = bool(self._follows_pack.any())
+        self._rated_v = np.where(self._follows_pack, rated, 1.0)
         self._kappa = np.array([c.yaw_moment_coeff_m for c in comps])
         tau = np.array([c.motor_tau_s for c in comps], dtype=float)
         self._alpha = np.where(tau > 0.0, 1.0 - np.exp(-ctx.dt_s / np.maximum(tau, 1e-12)), 1.0)   # lag per step
@@ -106,7 +111,11 @@ class MotorSystem(FleetSystem):
         f = ctx.fleet
         r = self.sel
         live = (f.flight_mode[r] != MODE_DISARMED) & f.motors_enabled[r]
-        cmd = f.motor_frac_cmd[r] * (self._f_max * live)[:, None]
+        f_max = self._f_max
+        if self._any_follows_pack:         # (V / V_rated)^2 where the pack reports a voltage
+            volts = f.pack_voltage_v[r]
+            f_max = f_max * np.where(self._follows_pack & (volts > 0.0), (volts / self._rated_v) ** 2, 1.0)
+        cmd = f.motor_frac_cmd[r] * (f_max * live)[:, None]
         f.motor_thrust_cmd_n[r] = cmd
         lagged = f.motor_thrust_n[r]
         if self._ge and self._lag:
