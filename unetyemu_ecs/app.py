@@ -55,6 +55,17 @@ def _check_mavlink(mavlink: object) -> bool:
     return bool(mavlink)
 
 
+def _check_record(record: Any) -> Path | None:
+    """The bag directory of ``record`` (a path, or None); a bad value raises ``ValueError`` naming it."""
+    if record is None:
+        return None
+    if isinstance(record, bool) or not isinstance(record, (str, Path)) or not str(record).strip():
+        raise ValueError(f"record must be the path of a new rosbag2 directory (or None), got {record!r}")
+    from .transport.record import bag_directory
+
+    return bag_directory(record)
+
+
 def _check_bind(address: object) -> str:
     import ipaddress
 
@@ -137,6 +148,8 @@ class Simulation(NavigationApi):
     mavlink : give every drone a MAVLink endpoint, also those without a ``mavlink`` component
         (``unetyemu run --mavlink``; docs/architecture.md §7)
     mavlink_bind : the address those endpoints bind (default loopback only)
+    record : record every topic the ROS 2 transport would publish into a rosbag2 (MCAP storage) at this
+        new directory (``ros2 bag info`` / ``play`` and Foxglove read it; no ROS 2 needed); None: no recording
     blas_threads : threads numpy's BLAS (OpenBLAS) may use while the simulation is open (default 1; None
         leaves them as they are). The sensors' products are small: with more threads BLAS spins on the
         other cores, and on a 2-core machine running the transports beside it that cost 44 % more CPU
@@ -150,7 +163,7 @@ class Simulation(NavigationApi):
 
     def __init__(self, world: WorldDefinition, *, gui: bool = False, out_dir: str | Path | None = None,
                  ros2: str = "off", mavlink: bool = False, mavlink_bind: str = "127.0.0.1",
-                 blas_threads: int | None = 1) -> None:
+                 record: str | Path | None = None, blas_threads: int | None = 1) -> None:
         spec = world.spec.world
         self.definition = world
         self._blas_limit: Any = None
@@ -158,7 +171,8 @@ class Simulation(NavigationApi):
         self.ros2 = ros2
         self.ros2_backend = resolve_backend(ros2)        # "off", "rclpy" or "dds"
         self._options = TransportOptions(self.ros2_backend, _check_mavlink(mavlink), _check_bind(mavlink_bind),
-                                         Path(out_dir) if out_dir is not None else None)
+                                         Path(out_dir) if out_dir is not None else None,
+                                         record=_check_record(record))
         self._transports: list[Transport] = []
         self._result_index: dict[int, CommandResult] = {}
         self._results_indexed = 0

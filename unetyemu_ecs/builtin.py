@@ -30,6 +30,7 @@ from .systems.motors import MotorSystem
 from .systems.payload import PayloadSystem
 from .transport.mavlink.component import MavlinkEndpoint
 from .transport.api import TransportPlugin
+from .transport.record import create_record_transport
 from .transport.ros2.transport import create_ros2_transport
 
 QUADROTOR = frozenset({"quadrotor"})
@@ -99,6 +100,10 @@ CAMERA = SensorPlugin(component=RgbCamera, system=RgbCameraSystem,
                       summary="RGB camera (ray cast): sensor_msgs/Image rgb8 + CameraInfo, optical frame")
 DEPTH_CAMERA = SensorPlugin(component=DepthCamera, system=DepthCameraSystem,
                             summary="depth camera (ray cast): sensor_msgs/Image 32FC1 metres (+inf no return) + CameraInfo")
+
+RECORD_TRANSPORT = TransportPlugin(
+    create=create_record_transport,
+    summary="rosbag2 recording with MCAP storage (--record PATH): every topic ROS 2 would publish, sim-time stamps")
 
 ROS2_TRANSPORT = TransportPlugin(
     create=create_ros2_transport,

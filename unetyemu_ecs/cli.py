@@ -130,6 +130,10 @@ def build_parser() -> argparse.ArgumentParser:
                           "14550), also drones without a mavlink component; the default pace is then real time")
     run.add_argument("--mavlink-bind", type=_bind_address, default="127.0.0.1", metavar="ADDR",
                      help="address the --mavlink endpoints bind (default 127.0.0.1: this machine only)")
+    run.add_argument("--record", nargs="?", const="", default=None, type=str, metavar="PATH",
+                     help="record every topic ROS 2 would publish into a rosbag2 with MCAP storage at PATH "
+                          "(a new directory; default: 'recording' in the run's output directory, next to its "
+                          "logs); no ROS 2 needed")
 
     val = sub.add_parser("validate", help="check world files without running them")
     val.add_argument("worlds", type=Path, nargs="+", metavar="WORLD")
@@ -288,8 +292,9 @@ def _run(args: argparse.Namespace, stop: _StopOnSignal) -> int:
         print(f"error: {out}", file=sys.stderr)
         return EXIT_BAD_INPUT
     try:
+        record = None if args.record is None else (Path(args.record) if args.record else Path(out) / "recording")
         sim = Simulation(world, gui=args.gui, out_dir=out, ros2=args.ros2, mavlink=args.mavlink,
-                         mavlink_bind=args.mavlink_bind)
+                         mavlink_bind=args.mavlink_bind, record=record)
     except (PhysicsError, SensorUnavailable, TransportError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_FAILURE

@@ -157,6 +157,7 @@ class TransportOptions:
     mavlink_bind : address to bind when ``mavlink`` is forced (default loopback)
     out_dir : the run's output directory (None: write nothing), e.g. for persisted parameters
     extra : switches of transports from other packages (name -> value)
+    record : the rosbag2 directory to record into (None: no recording)
     """
 
     ros2: str = "off"
@@ -164,6 +165,7 @@ class TransportOptions:
     mavlink_bind: str = "127.0.0.1"
     out_dir: Path | None = None
     extra: Mapping[str, Any] = field(default_factory=dict)
+    record: Path | None = None
 
 
 class Transport(Protocol):

@@ -1,0 +1,130 @@
+"""Recording as a transport (entry point ``record``): a rosbag2 with MCAP storage of what ROS 2 would publish.
+
+``Simulation(record=PATH)`` / ``unetyemu run WORLD --record [PATH]`` write every topic the ROS 2
+transport publishes -- sensors, ``/tf`` and ``/tf_static``, ``/clock``, mission status, ``/rosout`` --
+into a rosbag2 directory ``PATH`` (``metadata.yaml`` and ``PATH/<name>.mcap``), with ROS 2 Jazzy
+message definitions, CDR serialisation and sim-time stamps, without ROS 2 installed and without the
+DDS transport running: ``ros2 bag info PATH``, ``ros2 bag play PATH``, Foxglove and Lichtblick read
+it. It is the ROS 2 transport's publisher with a bag in place of the DDS participant, so what is
+recorded is exactly what a ROS 2 subscriber would have received. It writes on its own thread from
+the snapshot queue (deep: 1024 snapshots); a disk too slow for the simulation drops the oldest
+snapshots and counts them (``snapshots_dropped``), the loop never waits.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from .api import CommandPort, Snapshot, TransportError, TransportOptions
+from .ros2.transport import Ros2Transport
+from .snapshot import SnapshotQueue
+
+RECORD_QUEUE_DEPTH = 1024          # snapshots (4 s at 240 Hz) before the oldest are dropped
+BAG_VERSION = 8                    # rosbag2 metadata version that Humble to Jazzy read
+# topics a late subscriber should still get (TransientLocal, KeepLast(1) in the live transport)
+LATCHED_SUFFIXES = ("/tf_static", "/mission/status", "/rosout")
+
+
+def bag_directory(path: str | Path) -> Path:
+    """The rosbag2 directory of ``path`` (``run.mcap`` and ``run`` both name the bag ``run``)."""
+    p = Path(path)
+    return p.with_suffix("") if p.suffix == ".mcap" else p
+
+
+class BagBridge:
+    """The publishing side of a ROS 2 bridge that writes into a rosbag2 (MCAP storage) instead of DDS.
+
+    ``time_ns`` is the stamp of the next writes (the snapshot's sim time); one connection per topic,
+    with the message type's Jazzy definition and hash.
+    """
+
+    def __init__(self, directory: Path) -> None:
+        from rosbags.rosbag2 import StoragePlugin, Writer
+
+        from ..sensors.messages import typestore
+
+        self.directory = directory
+        self._typestore = typestore()
+        self._writer = Writer(directory, version=BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
+        self._writer.open()
+        self._connections: dict[str, Any] = {}
+        self.time_ns = 0
+        self.written: dict[str, int] = {}        # topic -> messages written
+
+    @property
+    def topics(self) -> list[str]:
+        return list(self._connections)
+
+    def publish(self, topic: str, msg: Any) -> None:
+        conn = self._connections.get(topic)
+        if conn is None:
+            conn = self._connections[topic] = self._writer.add_connection(
+                topic, msg.__msgtype__, typestore=self._typestore,
+                offered_qos_profiles=_latched_qos() if topic.endswith(LATCHED_SUFFIXES) else ())
+        self._writer.write(conn, self.time_ns, bytes(self._typestore.serialize_cdr(msg, msg.__msgtype__)))
+        self.written[topic] = self.written.get(topic, 0) + 1
+
+    def close(self) -> None:
+        self._writer.close()
+
+
+def _latched_qos() -> list[Any]:
+    """The offered QoS of a latched topic (reliable, transient local, keep last 1), so that ``ros2 bag
+    play`` republishes it as such; the times are ROS 2's defaults (infinite: 0 s)."""
+    from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+
+    never = QosTime(sec=0, nsec=0)
+    return [Qos(history=QosHistory.KEEP_LAST, depth=1, reliability=QosReliability.RELIABLE,
+                durability=QosDurability.TRANSIENT_LOCAL, deadline=never, lifespan=never,
+                liveliness=QosLiveliness.AUTOMATIC, liveliness_lease_duration=never,
+                avoid_ros_namespace_conventions=False)]
+
+
+class RecordTransport(Ros2Transport):
+    """The ROS 2 transport's publishing into a bag: no DDS, no command topics."""
+
+    name = "record"
+
+    def __init__(self, world: Any, path: Path) -> None:
+        super().__init__(world, "record")
+        self.path = bag_directory(path)
+        self._queue = SnapshotQueue(RECORD_QUEUE_DEPTH)
+
+    def start(self, port: CommandPort, first: Snapshot) -> None:
+        import threading
+
+        from .snapshot import run_consumer
+
+        if self.path.exists():
+            raise TransportError(f"record: {self.path} exists already (a rosbag2 is a new directory: "
+                                 "choose another name or remove it)")
+        if not self.path.parent.is_dir():
+            raise TransportError(f"record: cannot write {self.path}: {self.path.parent} is not a directory")
+        try:
+            self.bridge = BagBridge(self.path)
+        except Exception as exc:
+            raise TransportError(f"record: cannot open the bag {self.path}: {exc}") from exc
+        self._port = port
+        self._queue.put(first)
+        self._thread = threading.Thread(target=run_consumer, args=(self._queue, self._publish_snapshot, self._stop),
+                                        name="unetyemu-record", daemon=True)
+        self._thread.start()
+
+    def _publish_snapshot(self, snap: Snapshot) -> None:
+        self.bridge.time_ns = int(round(snap.sim_time_s * 1e9))
+        super()._publish_snapshot(snap)
+
+    def counters(self) -> dict[str, Any]:
+        counters = super().counters()
+        counters["path"] = str(self.path)
+        return counters
+
+
+def create_record_transport(world: Any, options: TransportOptions) -> RecordTransport | None:
+    """The ``record`` transport plugin's ``create``: a recorder when ``options.record`` names a bag."""
+    path = getattr(options, "record", None)
+    return RecordTransport(world, Path(path)) if path is not None else None
+
+
+__all__ = ["BagBridge", "RecordTransport", "bag_directory", "create_record_transport"]
