@@ -21,6 +21,7 @@ Cases:
                     streets, hovering; -ros2: the built-in ROS 2 node publishes their point clouds
     camera-K-WxH    K drones (1, 5) in the city, each with an RGB camera at 320x240 or 640x480, 10 Hz
     delivery        worlds/urban_delivery.yaml from t = 0 with all its sensors and CSV logs
+    delivery-record the same, recording every topic into a rosbag2 (MCAP) as `--record` does
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ PHASES = ("COMMANDS", "MISSION", "GUIDANCE", "STABILIZE", "ACTUATE", "PHYSICS", 
 CASES = ([f"flight-{n}" for n in (1, 10, 100, 250, 1000)]
          + [f"lidar-{n}{ros}" for n in (10, 30, 60, 100) for ros in ("", "-ros2")]
          + [f"camera-{k}-{w}x{h}" for k in (1, 5) for w, h in ((320, 240), (640, 480))]
-         + ["delivery"])
+         + ["delivery", "delivery-record"])
 
 
 def flight_world(n: int) -> str:
@@ -99,7 +100,8 @@ def run_case(case: str, seconds: float, rss_every_s: float = 0.0) -> dict:
     else:
         raise SystemExit(f"unknown case {case!r}; --list shows them")
     out = Path("/tmp") / f"stress-{case}-{time.time_ns()}" if kind == "delivery" else None
-    with Simulation(world, ros2=ros2, out_dir=out) as sim:
+    record = out / "recording" if kind == "delivery" and rest == ["record"] else None    # the rosbag2 recorder
+    with Simulation(world, ros2=ros2, out_dir=out, record=record) as sim:
         if shuttle:
             starts = {name: sim.position_enu_m(name).copy() for name in shuttle}
             for name in shuttle:
