@@ -126,6 +126,16 @@ class EnergyModel:
         """The new pack's capacity [Ah]: ``battery_wh`` at ``cells_series`` x 3.7 V (a LiPo cell's nominal voltage)."""
         return self.battery_wh / (self.cells_series * LIPO_CELL_NOMINAL_V)
 
+    @property
+    def capacity_ah(self) -> float:
+        """The capacity the pack holds now [Ah]: the design capacity faded by ``cycles`` (``lipo``;
+        :func:`~unetyemu_ecs.control.battery_ecm.soh_frac`), the design capacity for the ``ideal`` battery."""
+        if self.battery != "lipo":
+            return self.design_capacity_ah
+        from ..control.battery_ecm import soh_frac
+
+        return self.design_capacity_ah * float(soh_frac(self.cycles, self.cycle_life, self.eol_capacity_frac))
+
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class TeleopKeyframe:

@@ -17,7 +17,6 @@ import numpy as np
 
 from ..components.flight import EnergyModel
 from ..config.limits import SensorRate
-from ..control.battery_ecm import soh_frac
 from ..phases import Phase
 from ..world import StepContext
 from .base import MountedSensor, SensorSpec, SensorSystemBase
@@ -45,12 +44,9 @@ class BatterySystem(SensorSystemBase):
         f = ctx.fleet
         for s in due:
             model = esper.component_for_entity(s.entity, EnergyModel)
-            design_ah = model.design_capacity_ah
-            capacity_ah = design_ah * (float(soh_frac(model.cycles, model.cycle_life, model.eol_capacity_frac))
-                                       if model.battery == "lipo" else 1.0)
             self.publish(ctx, s, time_s, build=partial(
                 battery_message, time_s, s.frame_id, s.vehicle, float(f.pack_voltage_v[s.row]),
-                float(f.pack_current_a[s.row]), model.cells_series, capacity_ah, design_ah,
+                float(f.pack_current_a[s.row]), model.cells_series, model.capacity_ah, model.design_capacity_ah,
                 float(f.soc_frac[s.row]), bool(f.charging[s.row])))
 
 

@@ -24,7 +24,7 @@ import esper
 import numpy as np
 
 from ..components.flight import LIPO_CELL_NOMINAL_V, EnergyModel, QuadrotorMotors
-from ..control.battery_ecm import cell_ocv_v, energy_remaining_wh, pack_current_for_power_a, soh_frac, step_pack
+from ..control.battery_ecm import cell_ocv_v, energy_remaining_wh, pack_current_for_power_a, step_pack
 from ..control.energy import rotor_power_w
 from ..control.mixer import motor_positions_flu_m
 from ..control.rotor_power import (glauert_inflow_m_s, hover_induced_velocity_m_s, profile_hover_power_w,
@@ -90,8 +90,7 @@ class EnergySystem(FleetSystem):
         self._lipo = np.array([c.battery == "lipo" for c in comps])
         self._any_lipo, self._all_lipo = bool(self._lipo.any()), bool(self._lipo.all())
         self._cells = col("cells_series")
-        self._capacity_eff_ah = (np.array([c.design_capacity_ah for c in comps])
-                                 * soh_frac(col("cycles"), col("cycle_life"), col("eol_capacity_frac")))
+        self._capacity_eff_ah = np.array([c.capacity_ah for c in comps])
         self._r0 = self._cells * col("cell_r0_ohm")
         self._r1 = self._cells * col("cell_r1_ohm")
         self._rc_tau = col("rc_tau_s")
@@ -125,8 +124,10 @@ class EnergySystem(FleetSystem):
 
     def _energy_j(self, soc: np.ndarray, k: np.ndarray | slice) -> np.ndarray:
         """Energy left [J] at ``soc``: the open-circuit energy down to empty (lipo) or capacity x SOC (ideal)."""
+        if not self._any_lipo:
+            return soc * self._ideal_cap_j[k]
         lipo = energy_remaining_wh(soc, self._capacity_eff_ah[k], self._cells[k]) * J_PER_WH
-        return np.where(self._lipo[k], lipo, soc * self._ideal_cap_j[k])
+        return lipo if self._all_lipo else np.where(self._lipo[k], lipo, soc * self._ideal_cap_j[k])
 
     def _power_w(self, f, rows: np.ndarray | slice, k: np.ndarray | slice = slice(None)) -> np.ndarray:
         """Electrical power [W] of drones ``rows`` (parameters ``k``): rotors over eta, plus P0."""

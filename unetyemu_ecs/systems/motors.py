@@ -47,7 +47,7 @@ class MotorSystem(FleetSystem):
     flight_mode, motors_enabled, R_enu_flu, pack_voltage_v (``motors.rated_voltage_v``: the maximum
     thrust follows the pack, ``(V / V_rated)^2``, with the voltage of the previous step); for ground effect also pos_enu_m, vel_enu_m_s, wind_enu_m_s
     and the scene layout. Writes: fleet.motor_thrust_cmd_n, motor_thrust_n (applied, ground effect
-    included), ground_effect_factor (declared here: (4,) per motor, 1 = none); adds the rotors'
+    included), ground_effect_factor ((4,) per motor, 1 = none); adds the rotors'
     resultant force and torque to force_cmd_enu_n and torque_cmd_enu_n_m (applied in PHYSICS).
     """
 
@@ -76,7 +76,6 @@ class MotorSystem(FleetSystem):
 
     def _gather_ground_effect(self, ctx: StepContext, comps: list[QuadrotorMotors], arms: np.ndarray) -> None:
         f = ctx.fleet
-        f.declare("ground_effect_factor", (4,), np.float64, 1.0)
         energy = [esper.try_component(ent, EnergyModel) for ent in self.entities.tolist()]
         on = np.array([c.ground_effect and e is not None for c, e in zip(comps, energy)], dtype=bool)
         # a drone whose ground effect was just turned off keeps its lag state (the thrust out of ground effect)

@@ -16,9 +16,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from .api import CommandPort, Snapshot, TransportError, TransportOptions
+from .api import Snapshot, TransportError, TransportOptions
 from .ros2.transport import Ros2Transport
-from .snapshot import SnapshotQueue
 
 RECORD_QUEUE_DEPTH = 1024          # snapshots (4 s at 240 Hz) before the oldest are dropped
 BAG_VERSION = 8                    # rosbag2 metadata version that Humble to Jazzy read
@@ -87,29 +86,19 @@ class RecordTransport(Ros2Transport):
     name = "record"
 
     def __init__(self, world: Any, path: Path) -> None:
-        super().__init__(world, "record")
+        super().__init__(world, "record", queue_depth=RECORD_QUEUE_DEPTH)
         self.path = bag_directory(path)
-        self._queue = SnapshotQueue(RECORD_QUEUE_DEPTH)
 
-    def start(self, port: CommandPort, first: Snapshot) -> None:
-        import threading
-
-        from .snapshot import run_consumer
-
+    def _open_bridge(self) -> BagBridge:
         if self.path.exists():
             raise TransportError(f"record: {self.path} exists already (a rosbag2 is a new directory: "
                                  "choose another name or remove it)")
         if not self.path.parent.is_dir():
             raise TransportError(f"record: cannot write {self.path}: {self.path.parent} is not a directory")
         try:
-            self.bridge = BagBridge(self.path)
+            return BagBridge(self.path)
         except Exception as exc:
             raise TransportError(f"record: cannot open the bag {self.path}: {exc}") from exc
-        self._port = port
-        self._queue.put(first)
-        self._thread = threading.Thread(target=run_consumer, args=(self._queue, self._publish_snapshot, self._stop),
-                                        name="unetyemu-record", daemon=True)
-        self._thread.start()
 
     def _publish_snapshot(self, snap: Snapshot) -> None:
         self.bridge.time_ns = int(round(snap.sim_time_s * 1e9))

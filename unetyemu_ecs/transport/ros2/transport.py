@@ -43,7 +43,7 @@ class Ros2Transport:
 
     name = "ros2"
 
-    def __init__(self, world: Any, backend: str) -> None:
+    def __init__(self, world: Any, backend: str, queue_depth: int = QUEUE_DEPTH) -> None:
         self.backend = backend
         vehicles = [e for e in world.entities if e.kind != "package"]
         self._kinds = {e.name: e.kind for e in vehicles if e.ros2}
@@ -51,7 +51,7 @@ class Ros2Transport:
         self._hold_s = {v.name: v.command_timeout_s or None for v in world.spec.vehicles}
         self._context = CommandContext(world.layout, tuple(e.name for e in world.packages))
         self._parameters = {"world.name": world.spec.world.name, "world.seed": world.spec.world.seed}
-        self._queue = SnapshotQueue(QUEUE_DEPTH)
+        self._queue = SnapshotQueue(queue_depth)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._port: CommandPort | None = None
@@ -70,14 +70,18 @@ class Ros2Transport:
 
     # -- life cycle (simulation thread) --------------------------------------------------------
     def start(self, port: CommandPort, first: Snapshot) -> None:
-        from .bridge import open_bridge
-
         self._port = port
-        self.bridge = open_bridge(self.backend, self._kinds, COMMAND_TOPICS, self._on_message, self._parameters)
+        self.bridge = self._open_bridge()
         self._queue.put(first)
         self._thread = threading.Thread(target=run_consumer, args=(self._queue, self._publish_snapshot, self._stop),
-                                        name="unetyemu-ros2-publish", daemon=True)
+                                        name=f"unetyemu-{self.name}-publish", daemon=True)
         self._thread.start()
+
+    def _open_bridge(self) -> Any:
+        """What the publishes go to: the backend's ROS 2 node (which also delivers the command topics)."""
+        from .bridge import open_bridge
+
+        return open_bridge(self.backend, self._kinds, COMMAND_TOPICS, self._on_message, self._parameters)
 
     def offer(self, snapshot: Snapshot) -> None:
         self._queue.put(snapshot)
