@@ -66,6 +66,15 @@ def _check_record(record: Any) -> Path | None:
     return bag_directory(record)
 
 
+def _check_port(name: str, port: Any) -> int | None:
+    """A TCP port for a server on 127.0.0.1 (0: any free port), or None; a bad value raises ``ValueError``."""
+    if port is None:
+        return None
+    if isinstance(port, (bool, np.bool_)) or not isinstance(port, (int, np.integer)) or not 0 <= int(port) <= 65535:
+        raise ValueError(f"{name} must be a TCP port from 0 (any free port) to 65535, or None; got {port!r}")
+    return int(port)
+
+
 def _check_bind(address: object) -> str:
     import ipaddress
 
@@ -150,6 +159,9 @@ class Simulation(NavigationApi):
     mavlink_bind : the address those endpoints bind (default loopback only)
     record : record every topic the ROS 2 transport would publish into a rosbag2 (MCAP storage) at this
         new directory (``ros2 bag info`` / ``play`` and Foxglove read it; no ROS 2 needed); None: no recording
+    foxglove : serve the Foxglove WebSocket protocol on 127.0.0.1 at this TCP port (0: any free port), so
+        Foxglove or Lichtblick watch the run live; None (default): no server
+    view : serve the built-in 3D web view on 127.0.0.1 at this TCP port (0: any free port); None (default): none
     blas_threads : threads numpy's BLAS (OpenBLAS) may use while the simulation is open (default 1; None
         leaves them as they are). The sensors' products are small: with more threads BLAS spins on the
         other cores, and on a 2-core machine running the transports beside it that cost 44 % more CPU
@@ -163,7 +175,8 @@ class Simulation(NavigationApi):
 
     def __init__(self, world: WorldDefinition, *, gui: bool = False, out_dir: str | Path | None = None,
                  ros2: str = "off", mavlink: bool = False, mavlink_bind: str = "127.0.0.1",
-                 record: str | Path | None = None, blas_threads: int | None = 1) -> None:
+                 record: str | Path | None = None, foxglove: int | None = None, view: int | None = None,
+                 blas_threads: int | None = 1) -> None:
         spec = world.spec.world
         self.definition = world
         self._blas_limit: Any = None
@@ -172,7 +185,8 @@ class Simulation(NavigationApi):
         self.ros2_backend = resolve_backend(ros2)        # "off", "rclpy" or "dds"
         self._options = TransportOptions(self.ros2_backend, _check_mavlink(mavlink), _check_bind(mavlink_bind),
                                          Path(out_dir) if out_dir is not None else None,
-                                         record=_check_record(record))
+                                         record=_check_record(record), foxglove=_check_port("foxglove", foxglove),
+                                         view=_check_port("view", view))
         self._transports: list[Transport] = []
         self._result_index: dict[int, CommandResult] = {}
         self._results_indexed = 0

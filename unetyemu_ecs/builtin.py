@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from .components.aero import AeroDrag
 from .components.car import CarDynamics, CarRoute
 from .components.flight import EnergyModel, GuidanceLimits, PayloadBay, QuadrotorMotors, TeleopScript
@@ -29,7 +31,7 @@ from .systems.navigator import LandDetectorSystem, NavigatorSystem
 from .systems.motors import MotorSystem
 from .systems.payload import PayloadSystem
 from .transport.mavlink.component import MavlinkEndpoint
-from .transport.api import TransportPlugin
+from .transport.api import TransportOptions, TransportPlugin
 from .transport.record import create_record_transport
 from .transport.ros2.transport import create_ros2_transport
 
@@ -104,6 +106,30 @@ DEPTH_CAMERA = SensorPlugin(component=DepthCamera, system=DepthCameraSystem,
 RECORD_TRANSPORT = TransportPlugin(
     create=create_record_transport,
     summary="rosbag2 recording with MCAP storage (--record PATH): every topic ROS 2 would publish, sim-time stamps")
+
+def _create_foxglove_transport(world: Any, options: TransportOptions) -> Any:
+    if options.foxglove is None:        # foxglove-sdk is imported only when a server is asked for
+        return None
+    from .transport.foxglove import create_foxglove_transport
+
+    return create_foxglove_transport(world, options)
+
+
+def _create_view_transport(world: Any, options: TransportOptions) -> Any:
+    if options.view is None:
+        return None
+    from .view.transport import create_view_transport
+
+    return create_view_transport(world, options)
+
+
+FOXGLOVE_TRANSPORT = TransportPlugin(
+    create=_create_foxglove_transport,
+    summary="Foxglove WebSocket server (--foxglove PORT) on 127.0.0.1: scene, vehicles, TF, sensors, status, live")
+
+VIEW_TRANSPORT = TransportPlugin(
+    create=_create_view_transport,
+    summary="built-in 3D web view (--view PORT) on 127.0.0.1: city, vehicles, LiDAR, camera, per-vehicle panel")
 
 ROS2_TRANSPORT = TransportPlugin(
     create=create_ros2_transport,

@@ -23,6 +23,8 @@ EXIT_INTERRUPTED = 130          # 128 + SIGINT; SIGTERM ends with 143, SIGHUP wi
 # --rate: slower than 1/100 of real time is a frozen picture, faster than 1000x is "max"
 MIN_RATE = 0.01
 MAX_RATE = 1000.0
+FOXGLOVE_PORT = 8765                # Foxglove's default WebSocket port
+VIEW_PORT = 8080                    # the built-in web view's default HTTP port
 # signals that end a run cleanly (logs kept, summary written): Ctrl-C, and how `timeout`, `docker stop`,
 # systemd and `ros2 launch` (SIGTERM) or a closed terminal (SIGHUP) stop a process
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
@@ -85,6 +87,17 @@ def _bind_address(text: str) -> str:
                                          "every interface)") from None
 
 
+def _tcp_port(text: str) -> int:
+    """A TCP port for a server on 127.0.0.1 (0: any free port)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a TCP port (an integer from 0 to 65535)") from None
+    if not 0 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"port {value} is out of range (0 to 65535; 0 picks a free port)")
+    return value
+
+
 def _out_dir(text: str) -> Path:
     if not text.strip():
         raise argparse.ArgumentTypeError("the output directory must not be empty (omit --out for runs/<world>-<time>)")
@@ -134,6 +147,12 @@ def build_parser() -> argparse.ArgumentParser:
                      help="record every topic ROS 2 would publish into a rosbag2 with MCAP storage at PATH "
                           "(a new directory; default: 'recording' in the run's output directory, next to its "
                           "logs); no ROS 2 needed")
+    run.add_argument("--foxglove", nargs="?", const=FOXGLOVE_PORT, default=None, type=_tcp_port, metavar="PORT",
+                     help=f"serve the Foxglove WebSocket protocol on 127.0.0.1:PORT (default {FOXGLOVE_PORT}; 0: any "
+                          "free port) so Foxglove or Lichtblick watch the run live; no ROS 2 needed")
+    run.add_argument("--view", nargs="?", const=VIEW_PORT, default=None, type=_tcp_port, metavar="PORT",
+                     help=f"serve the built-in 3D web view at http://127.0.0.1:PORT/ (default {VIEW_PORT}; 0: any "
+                          "free port)")
 
     val = sub.add_parser("validate", help="check world files without running them")
     val.add_argument("worlds", type=Path, nargs="+", metavar="WORLD")
@@ -294,7 +313,7 @@ def _run(args: argparse.Namespace, stop: _StopOnSignal) -> int:
     try:
         record = None if args.record is None else (Path(args.record) if args.record else Path(out) / "recording")
         sim = Simulation(world, gui=args.gui, out_dir=out, ros2=args.ros2, mavlink=args.mavlink,
-                         mavlink_bind=args.mavlink_bind, record=record)
+                         mavlink_bind=args.mavlink_bind, record=record, foxglove=args.foxglove, view=args.view)
     except (PhysicsError, SensorUnavailable, TransportError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_FAILURE
@@ -313,6 +332,9 @@ def _run(args: argparse.Namespace, stop: _StopOnSignal) -> int:
     if sim.ros2_backend != "off" and not args.quiet:
         print(f"ROS 2: node /unetyemu_sim on the {sim.ros2_backend} backend, ROS_DOMAIN_ID {domain_from_env()}"
               + (f", {discovery_description()}" if sim.ros2_backend == "dds" else ""), file=sys.stderr)
+    for transport in sim.transports.values():       # servers say where to connect (printed even with --quiet)
+        if getattr(transport, "url", None):
+            print(f"{transport.name}: {transport.url}", file=sys.stderr, flush=True)
     try:
         if stop.signum is None:
             progress = None if args.quiet else _Progress(sys.stderr)
