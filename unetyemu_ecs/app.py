@@ -66,6 +66,22 @@ def _check_record(record: Any) -> Path | None:
     return bag_directory(record)
 
 
+def _check_record_topics(patterns: Any, record: Path | None) -> tuple[str, ...]:
+    """Glob patterns of topic names to record (``/drone1/*``); a bad value raises ``ValueError`` naming it."""
+    if patterns is None:
+        return ()
+    if isinstance(patterns, str) or not isinstance(patterns, (list, tuple)):
+        raise ValueError(f"record_topics must be a list of topic patterns such as ['/drone1/*', '/tf'], "
+                         f"got {patterns!r}")
+    for pattern in patterns:
+        if not isinstance(pattern, str) or not pattern.startswith(("/", "*")) or any(c.isspace() for c in pattern):
+            raise ValueError(f"record_topics: {pattern!r} is not a topic pattern (a ROS 2 topic name such as "
+                             "'/drone1/imu/data', '*' and '?' as wildcards)")
+    if patterns and record is None:
+        raise ValueError("record_topics was given without record (the path of the bag to record into)")
+    return tuple(patterns)
+
+
 def _check_port(name: str, port: Any) -> int | None:
     """A TCP port for a server on 127.0.0.1 (0: any free port), or None; a bad value raises ``ValueError``."""
     if port is None:
@@ -159,6 +175,8 @@ class Simulation(NavigationApi):
     mavlink_bind : the address those endpoints bind (default loopback only)
     record : record every topic the ROS 2 transport would publish into a rosbag2 (MCAP storage) at this
         new directory (``ros2 bag info`` / ``play`` and Foxglove read it; no ROS 2 needed); None: no recording
+    record_topics : record only the topics matching these glob patterns (``["/drone1/*", "/tf", "/clock"]``);
+        None (default): every topic
     foxglove : serve the Foxglove WebSocket protocol on 127.0.0.1 at this TCP port (0: any free port), so
         Foxglove or Lichtblick watch the run live; None (default): no server
     view : serve the built-in 3D web view on 127.0.0.1 at this TCP port (0: any free port); None (default): none
@@ -175,7 +193,8 @@ class Simulation(NavigationApi):
 
     def __init__(self, world: WorldDefinition, *, gui: bool = False, out_dir: str | Path | None = None,
                  ros2: str = "off", mavlink: bool = False, mavlink_bind: str = "127.0.0.1",
-                 record: str | Path | None = None, foxglove: int | None = None, view: int | None = None,
+                 record: str | Path | None = None, record_topics: list[str] | tuple[str, ...] | None = None,
+                 foxglove: int | None = None, view: int | None = None,
                  blas_threads: int | None = 1) -> None:
         spec = world.spec.world
         self.definition = world
@@ -185,7 +204,9 @@ class Simulation(NavigationApi):
         self.ros2_backend = resolve_backend(ros2)        # "off", "rclpy" or "dds"
         self._options = TransportOptions(self.ros2_backend, _check_mavlink(mavlink), _check_bind(mavlink_bind),
                                          Path(out_dir) if out_dir is not None else None,
-                                         record=_check_record(record), foxglove=_check_port("foxglove", foxglove),
+                                         record=_check_record(record),
+                                         record_topics=_check_record_topics(record_topics, _check_record(record)),
+                                         foxglove=_check_port("foxglove", foxglove),
                                          view=_check_port("view", view))
         self._transports: list[Transport] = []
         self._result_index: dict[int, CommandResult] = {}

@@ -147,6 +147,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="record every topic ROS 2 would publish into a rosbag2 with MCAP storage at PATH "
                           "(a new directory; default: 'recording' in the run's output directory, next to its "
                           "logs); no ROS 2 needed")
+    run.add_argument("--record-topics", nargs="+", default=None, metavar="PATTERN",
+                     help="with --record: record only the topics matching these patterns ('/drone1/*' /tf /clock; "
+                          "quote them for the shell); default every topic")
     run.add_argument("--foxglove", nargs="?", const=FOXGLOVE_PORT, default=None, type=_tcp_port, metavar="PORT",
                      help=f"serve the Foxglove WebSocket protocol on 127.0.0.1:PORT (default {FOXGLOVE_PORT}; 0: any "
                           "free port) so Foxglove or Lichtblick watch the run live; no ROS 2 needed")
@@ -300,6 +303,9 @@ def _run(args: argparse.Namespace, stop: _StopOnSignal) -> int:
     from .transport.api import TransportError
     from .transport.ros2.dds_backend import discovery_description, domain_from_env
 
+    if args.record_topics and args.record is None:
+        print("error: --record-topics needs --record (the recording they select from)", file=sys.stderr)
+        return EXIT_BAD_INPUT
     try:
         world = load_world(args.world, seed=args.seed)
     except ConfigError as exc:
@@ -313,7 +319,8 @@ def _run(args: argparse.Namespace, stop: _StopOnSignal) -> int:
     try:
         record = None if args.record is None else (Path(args.record) if args.record else Path(out) / "recording")
         sim = Simulation(world, gui=args.gui, out_dir=out, ros2=args.ros2, mavlink=args.mavlink,
-                         mavlink_bind=args.mavlink_bind, record=record, foxglove=args.foxglove, view=args.view)
+                         mavlink_bind=args.mavlink_bind, record=record,
+                         record_topics=args.record_topics, foxglove=args.foxglove, view=args.view)
     except (PhysicsError, SensorUnavailable, TransportError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_FAILURE

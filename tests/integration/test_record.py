@@ -82,3 +82,30 @@ def test_the_cli_records_next_to_the_runs_logs(tmp_path):
                      "--record"]) == 0
     assert (out / "recording" / "recording.mcap").is_file() and (out / "summary.json").is_file()
     assert len(read_back(out / "recording")["/clock"]) == 121
+
+
+def test_a_chosen_set_of_topics_is_recorded_and_nothing_else(tmp_path):
+    bag = tmp_path / "chosen"
+    with Simulation(load_world(WORLDS / "urban_delivery.yaml"), record=bag,
+                    record_topics=["/drone1/*", "/clock", "/nothing/here"]) as sim:
+        sim.run(duration=0.5)
+        assert sim.flush_transports(30.0)
+        counters = sim.transport_counters()["record"]
+    messages = read_back(bag)
+    assert "/clock" in messages and "/drone1/imu/data" in messages and "/drone1/mission/status" in messages
+    assert all(t == "/clock" or t.startswith("/drone1/") for t in messages), sorted(messages)
+    assert counters["patterns_matching_nothing"] == ["/nothing/here"]
+    assert sum(len(v) for v in messages.values()) == counters["published"]
+
+
+def test_bad_topic_choices_are_refused_with_what_is_wrong(tmp_path):
+    world = load_world(WORLDS / "empty.yaml")
+    with pytest.raises(ValueError, match="not a topic pattern"):
+        Simulation(world, record=tmp_path / "a", record_topics=["drone1 imu"])
+    with pytest.raises(ValueError, match="list of topic patterns"):
+        Simulation(world, record=tmp_path / "b", record_topics="/tf")
+    with pytest.raises(ValueError, match="without record"):
+        Simulation(world, record_topics=["/tf"])
+    assert cli_main(["run", str(WORLDS / "empty.yaml"), "--duration", "0.1", "--out", str(tmp_path / "run"),
+                     "--quiet", "--record-topics", "/tf"]) == 2
+    assert not (tmp_path / "run").exists()

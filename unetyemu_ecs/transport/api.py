@@ -158,6 +158,7 @@ class TransportOptions:
     out_dir : the run's output directory (None: write nothing), e.g. for persisted parameters
     extra : switches of transports from other packages (name -> value)
     record : the rosbag2 directory to record into (None: no recording)
+    record_topics : the topics to record, as glob patterns (``/drone1/*``, ``/tf``); empty: every topic
     foxglove : TCP port of the Foxglove WebSocket server on 127.0.0.1 (0: any free port; None: no server)
     view : TCP port of the built-in 3D web view on 127.0.0.1 (0: any free port; None: no view)
     """
@@ -168,6 +169,7 @@ class TransportOptions:
     out_dir: Path | None = None
     extra: Mapping[str, Any] = field(default_factory=dict)
     record: Path | None = None
+    record_topics: tuple[str, ...] = ()
     foxglove: int | None = None
     view: int | None = None
 

@@ -8,11 +8,13 @@ DDS transport running: ``ros2 bag info PATH``, ``ros2 bag play PATH``, Foxglove 
 it. It is the ROS 2 transport's publisher with a bag in place of the DDS participant, so what is
 recorded is exactly what a ROS 2 subscriber would have received. It writes on its own thread from
 the snapshot queue (deep: 1024 snapshots); a disk too slow for the simulation drops the oldest
-snapshots and counts them (``snapshots_dropped``), the loop never waits.
+snapshots and counts them (``snapshots_dropped``), the loop never waits. ``record_topics`` (glob
+patterns) keeps a chosen set of topics; the messages of the others are never built.
 """
 
 from __future__ import annotations
 
+from fnmatch import fnmatchcase
 from pathlib import Path
 from typing import Any
 
@@ -85,9 +87,21 @@ class RecordTransport(Ros2Transport):
 
     name = "record"
 
-    def __init__(self, world: Any, path: Path) -> None:
+    def __init__(self, world: Any, path: Path, topics: tuple[str, ...] = ()) -> None:
         super().__init__(world, "record", queue_depth=RECORD_QUEUE_DEPTH)
         self.path = bag_directory(path)
+        self.patterns = tuple(topics)
+        self._chosen: dict[str, bool] = {}          # topic -> whether a pattern matches it (transport thread)
+
+    def _wants(self, topic: str) -> bool:
+        chosen = self._chosen.get(topic)
+        if chosen is None:
+            chosen = self._chosen[topic] = not self.patterns or any(fnmatchcase(topic, p) for p in self.patterns)
+        return chosen
+
+    def _publish(self, topic: str, msg: Any) -> None:
+        if self._wants(topic):
+            super()._publish(topic, msg)
 
     def _open_bridge(self) -> BagBridge:
         if self.path.exists():
@@ -107,13 +121,18 @@ class RecordTransport(Ros2Transport):
     def counters(self) -> dict[str, Any]:
         counters = super().counters()
         counters["path"] = str(self.path)
+        if self.patterns:
+            seen = [t for t, chosen in list(self._chosen.items()) if chosen]
+            counters["topics_chosen"] = len(seen)
+            counters["patterns_matching_nothing"] = [p for p in self.patterns
+                                                     if not any(fnmatchcase(t, p) for t in seen)]
         return counters
 
 
 def create_record_transport(world: Any, options: TransportOptions) -> RecordTransport | None:
     """The ``record`` transport plugin's ``create``: a recorder when ``options.record`` names a bag."""
     path = getattr(options, "record", None)
-    return RecordTransport(world, Path(path)) if path is not None else None
+    return RecordTransport(world, Path(path), getattr(options, "record_topics", ())) if path is not None else None
 
 
 __all__ = ["BagBridge", "RecordTransport", "bag_directory", "create_record_transport"]
