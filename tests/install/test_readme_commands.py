@@ -37,9 +37,11 @@ def test_first_command_installs_into_a_venv_and_runs_the_delivery_world():
 def test_second_command_installs_test_extras_and_runs_pytest_from_the_venv():
     # GIVEN the second command
     second = readme_commands()[1]
-    # THEN it also installs the Fast DDS peer's build dependencies and runs pytest with the venv's python,
+    # THEN it also installs the Fast DDS peer's build dependencies and Chromium (the web view test) and runs
+    # pytest with the venv's python,
     # on two workers (pytest-xdist, from the test extra) with the DDS tests grouped on one of them
-    for package in ("python3-venv", "python3-dev", "g++", "libusb-1.0-0", "libgl1", "libegl1", "libfastrtps-dev"):
+    for package in ("python3-venv", "python3-dev", "g++", "libusb-1.0-0", "libgl1", "libegl1", "libfastrtps-dev",
+                    "chromium"):
         assert f" {package} " in second, package
     assert "python3 -m venv .venv && .venv/bin/pip install -e '.[test]' &&" in second
     assert second.endswith(" && .venv/bin/python -m pytest -n 2 --dist loadfile")
