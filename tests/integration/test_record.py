@@ -109,3 +109,23 @@ def test_bad_topic_choices_are_refused_with_what_is_wrong(tmp_path):
     assert cli_main(["run", str(WORLDS / "empty.yaml"), "--duration", "0.1", "--out", str(tmp_path / "run"),
                      "--quiet", "--record-topics", "/tf"]) == 2
     assert not (tmp_path / "run").exists()
+
+
+def test_the_recorder_runs_in_a_worker_process_whose_death_never_stops_the_simulation(tmp_path):
+    import os
+    import signal
+
+    with Simulation(load_world(WORLDS / "empty.yaml"), record=tmp_path / "bag") as sim:
+        worker = sim.transports["record"]
+        pid = sim.transport_counters()["record"]["worker"]["pid"]
+        assert pid != os.getpid()
+        sim.run(duration=0.5)
+        assert sim.flush_transports(30.0)
+        os.kill(pid, signal.SIGKILL)                 # the worker dies mid-run
+        sim.run(duration=0.5)                        # the simulation goes on
+        sim.flush_transports(5.0)
+        counters = sim.transport_counters()["record"]
+        assert sim.step_count == 240
+    assert counters["worker"]["error"]               # and the summary says what happened
+    assert counters["published"] >= 121              # what was written before stays counted
+    assert worker.counters()["worker"]["pid"] is None

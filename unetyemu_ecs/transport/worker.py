@@ -1,0 +1,251 @@
+"""A transport run in a process of its own, so that its Python work never competes with the loop for the GIL.
+
+A transport thread in the simulation's process still holds the interpreter lock while it builds,
+serialises and writes messages; on a 2-core machine the loop then waits for it, and the recording of
+the delivery scenario cost a sixth of its real-time factor that way although the writer had a core
+to itself. :class:`ProcessTransport` keeps in this process only what is cheap: its ``offer`` appends
+the snapshot to a drop-oldest queue (as every transport's does), and its thread sends each one to a
+worker process as one pickle over a pipe (about 40 us for the delivery scenario: the sensor samples
+travel unbuilt, as the functions and copied arrays that build their messages). The worker
+(:mod:`.worker_main`, started as ``python -m unetyemu_ecs.transport.worker_main``) rebuilds the
+snapshot and hands it to the real transport, which runs there exactly as it would here: its own
+queue, thread and counters.
+
+Only what the inner transport needs crosses: the sensor samples, mission status, new events and
+command results (the worker appends them to lists of its own, so the cursors work as in
+:class:`~.api.Snapshot`), and the arrays named by ``arrays``. Inner transports are output-only: the
+worker refuses command submissions (a transport that takes commands runs in the simulation's process).
+
+Frames on both pipes: 4-byte little-endian length, then a pickle. To the worker: ``("start",
+factory, world, options, vehicles, kinds, first)``, ``("snap", slim)``, ``("flush", n, timeout_s)``,
+``("stop", timeout_s)``. Back: ``("ready", info)`` or ``("error", text)`` after start,
+``("flushed", n, ok, counters)``, ``("stopped", counters)``. The worker's stderr is this process's,
+so its warnings and tracebacks land in the same log.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import struct
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from typing import Any
+
+from .api import CommandPort, Snapshot, TransportError, TransportOptions
+from .snapshot import SnapshotQueue, run_consumer
+
+SEND_QUEUE_DEPTH = 64          # snapshots waiting to be sent; the worker's own transport queues deeper
+START_TIMEOUT_S = 60.0         # importing the worker's modules (numpy, rosbags ...) on a busy machine
+_LEN = struct.Struct("<I")
+
+
+def write_frame(fd: int, obj: Any) -> int:
+    """Pickle ``obj`` and write it as one frame to the file descriptor ``fd``; returns the bytes written."""
+    data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
+    view = memoryview(_LEN.pack(len(data)) + data)
+    while view:
+        n = os.write(fd, view)
+        view = view[n:]
+    return len(data) + _LEN.size
+
+
+def read_frame(stream: Any) -> Any:
+    """The next frame's object from the binary ``stream``; EOFError when the other side closed it."""
+    head = stream.read(_LEN.size)
+    if len(head) < _LEN.size:
+        raise EOFError("pipe closed")
+    (size,) = _LEN.unpack(head)
+    data = stream.read(size)
+    if len(data) < size:
+        raise EOFError("pipe closed mid-frame")
+    return pickle.loads(data)
+
+
+def slim(snap: Snapshot, arrays: Sequence[str], events_from: int, results_from: int) -> tuple:
+    """What crosses to the worker of one snapshot: only the arrays named, only new events and results."""
+    return (snap.step, snap.sim_time_s, snap.dt_s, {k: snap.arrays[k] for k in arrays}, tuple(snap.sensors),
+            list(snap.events[events_from:snap.events_end]), list(snap.results[results_from:snap.results_end]),
+            {k: dict(v) for k, v in snap.mission_status.items()})
+
+
+class ProcessTransport:
+    """A transport whose work runs in a worker process (see the module docstring).
+
+    name : the transport's name (summary.json ``transports.<name>``)
+    factory : ``"module:function"``; the worker calls ``function(world, options)`` for the real transport
+    world, options : what the factory gets (pickled once, at start)
+    arrays : the snapshot arrays the real transport reads (none for a recorder of sensor messages)
+    """
+
+    def __init__(self, name: str, factory: str, world: Any, options: TransportOptions,
+                 arrays: Sequence[str] = ()) -> None:
+        self.name = name
+        self.factory = factory
+        self._world = world
+        self._options = options
+        self._arrays = tuple(arrays)
+        self._queue = SnapshotQueue(SEND_QUEUE_DEPTH)
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._proc: subprocess.Popen | None = None
+        self._write_lock = threading.Lock()
+        self._replies: dict[Any, Any] = {}
+        self._replied = threading.Condition()
+        self._reader: threading.Thread | None = None
+        self._events_sent = 0
+        self._results_sent = 0
+        self._flushes = 0
+        self._counters: dict[str, Any] = {}          # the worker's transport's, newest
+        self.info: dict[str, Any] = {}               # what the worker's transport said at start (url ...)
+        self.bytes_sent = 0
+        self.send_errors = 0
+        self.error = ""
+
+    # -- life cycle (simulation thread) --------------------------------------------------------
+    def start(self, port: CommandPort, first: Snapshot) -> None:
+        env = dict(os.environ, OPENBLAS_NUM_THREADS=os.environ.get("OPENBLAS_NUM_THREADS", "1"))
+        try:
+            self._proc = subprocess.Popen([sys.executable, "-m", "unetyemu_ecs.transport.worker_main"],
+                                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
+        except OSError as exc:
+            raise TransportError(f"{self.name}: cannot start its worker process: {exc}") from exc
+        self._reader = threading.Thread(target=self._read_replies, name=f"unetyemu-{self.name}-replies", daemon=True)
+        self._reader.start()
+        first_slim = slim(first, self._arrays, 0, 0)
+        self._events_sent, self._results_sent = first.events_end, first.results_end
+        try:
+            self._send(("start", self.factory, self._world, self._options, first.vehicles, first.kinds, first_slim))
+        except OSError as exc:
+            raise TransportError(f"{self.name}: its worker process did not take the world: {exc}") from exc
+        reply = self._wait_reply("start", START_TIMEOUT_S)
+        if reply is None:
+            raise TransportError(f"{self.name}: its worker process did not start within {START_TIMEOUT_S:.0f} s"
+                                 + (f" ({self.error})" if self.error else ""))
+        if reply[0] == "error":
+            raise TransportError(reply[1])
+        self.info = dict(reply[1])
+        self._thread = threading.Thread(target=run_consumer, args=(self._queue, self._send_snapshot, self._stop),
+                                        name=f"unetyemu-{self.name}-send", daemon=True)
+        self._thread.start()
+
+    def offer(self, snapshot: Snapshot) -> None:
+        self._queue.put(snapshot)
+
+    def flush(self, timeout_s: float = 2.0) -> bool:
+        """Wait until the worker's transport has handled everything offered so far."""
+        deadline = time.monotonic() + timeout_s
+        if self._thread is None or not self._thread.is_alive() or not self._alive():
+            return True
+        if not self._queue.wait_done(timeout_s):
+            return False
+        self._flushes += 1
+        key = ("flushed", self._flushes)
+        try:
+            self._send(("flush", self._flushes, max(0.0, deadline - time.monotonic())))
+        except OSError:
+            return True                             # the worker is gone: nothing more will be handled
+        reply = self._wait_reply(key, max(0.0, deadline - time.monotonic()) + 1.0)
+        return bool(reply is not None and reply[1])
+
+    def stop(self, timeout_s: float = 2.0) -> None:
+        self._stop.set()
+        self._queue.wake()
+        if self._thread is not None:
+            self._thread.join(timeout_s)
+            self._thread = None
+        proc, self._proc = self._proc, None
+        if proc is None:
+            return
+        try:
+            self._send_to(proc, ("stop", timeout_s))
+            self._wait_reply("stopped", timeout_s + 5.0)
+        except OSError:
+            pass
+        try:
+            proc.stdin.close()
+        except OSError:
+            pass
+        try:
+            proc.wait(timeout_s + 5.0)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(5.0)
+        if self._reader is not None:
+            self._reader.join(2.0)
+
+    def __getattr__(self, name: str) -> Any:
+        """What the worker's transport said at start (``url``, ``port``, ``path``) reads as attributes."""
+        info = self.__dict__.get("info") or {}
+        if name in info:
+            return info[name]
+        raise AttributeError(f"{type(self).__name__} {self.__dict__.get('name')!r} has no attribute {name!r}")
+
+    def counters(self) -> dict[str, Any]:
+        counters = dict(self._counters)
+        counters["snapshots_offered"] = self._queue.offered
+        counters["snapshots_dropped"] = self._queue.dropped + int(counters.get("snapshots_dropped", 0))
+        counters["worker"] = {"pid": self._proc.pid if self._proc is not None else None,
+                              "bytes_sent": self.bytes_sent, "send_errors": self.send_errors,
+                              **({"error": self.error} if self.error else {})}
+        return counters
+
+    # -- the send thread -------------------------------------------------------------------------
+    def _send_snapshot(self, snap: Snapshot) -> None:
+        if self.send_errors:                        # the worker is gone: drop (counted once)
+            return
+        item = ("snap", slim(snap, self._arrays, self._events_sent, self._results_sent))
+        self._events_sent, self._results_sent = snap.events_end, snap.results_end
+        try:
+            self._send(item)
+        except (OSError, pickle.PicklingError, TypeError, AttributeError) as exc:
+            self.send_errors += 1
+            self.error = self.error or f"cannot send to the worker: {type(exc).__name__}: {exc}"
+
+    def _send(self, obj: Any) -> None:
+        proc = self._proc
+        if proc is None:
+            raise OSError("the worker process is not running")
+        self._send_to(proc, obj)
+
+    def _send_to(self, proc: subprocess.Popen, obj: Any) -> None:
+        with self._write_lock:
+            self.bytes_sent += write_frame(proc.stdin.fileno(), obj)
+
+    def _alive(self) -> bool:
+        return self._proc is not None and self._proc.poll() is None
+
+    # -- replies (the reader thread) -------------------------------------------------------------
+    def _read_replies(self) -> None:
+        proc = self._proc
+        stream = proc.stdout if proc is not None else None
+        while stream is not None:
+            try:
+                reply = read_frame(stream)
+            except (EOFError, OSError, pickle.UnpicklingError) as exc:
+                if not self.error and proc.poll() not in (0, None):
+                    self.error = f"the worker process ended with exit status {proc.returncode}"
+                elif not self.error and not isinstance(exc, EOFError):
+                    self.error = f"unreadable reply from the worker: {exc}"
+                break
+            kind = reply[0]
+            if kind in ("flushed", "stopped"):
+                self._counters = dict(reply[-1])
+            key = ("flushed", reply[1]) if kind == "flushed" else ("start" if kind in ("ready", "error") else kind)
+            with self._replied:
+                self._replies[key] = reply
+                self._replied.notify_all()
+        with self._replied:
+            self._replies["eof"] = True
+            self._replied.notify_all()
+
+    def _wait_reply(self, key: Any, timeout_s: float) -> Any:
+        with self._replied:
+            self._replied.wait_for(lambda: key in self._replies or "eof" in self._replies, timeout_s)
+            return self._replies.pop(key, None)
+
+
+__all__ = ["ProcessTransport", "read_frame", "slim", "write_frame"]
