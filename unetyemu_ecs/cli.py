@@ -1,4 +1,4 @@
-"""``unetyemu`` command line: run, validate, plugins, plot.
+"""``unetyemu`` command line: run, validate, plugins, plot, teleop, view.
 
 Exit codes: 0 success, 1 runtime failure, 2 bad input (arguments or world file), 130 interrupted.
 """
@@ -124,7 +124,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="simulated seconds to run (default: the world file's world.duration_s)")
     run.add_argument("--rate", type=_rate, default=None, metavar="X|max",
                      help="pace: X times real time, or 'max' for as fast as possible "
-                          "(default: 1 with --gui, ROS 2 or MAVLink endpoints, max otherwise)")
+                          "(default: 1 with --gui, ROS 2, MAVLink endpoints, --foxglove or --view; max otherwise, "
+                          "also with only --record)")
     run.add_argument("--seed", type=_seed, default=None, metavar="N", help="override the world file's seed")
     run.add_argument("--gui", action="store_true", help="open the PyBullet window")
     run.add_argument("--out", type=_out_dir, default=None, metavar="DIR",
@@ -168,6 +169,15 @@ def build_parser() -> argparse.ArgumentParser:
     tele.add_argument("--layout", choices=["drone", "car"], default="drone",
                       help="stick layout: drone [throttle, pitch, roll, yaw] or car [throttle, brake, steering]")
 
+    view = sub.add_parser("view", help="replay a recording (--record) in the built-in 3D web view")
+    view.add_argument("recording", type=Path, metavar="RECORDING",
+                      help="the rosbag2 directory written by --record, or its .mcap file")
+    view.add_argument("--port", type=_tcp_port, default=VIEW_PORT, metavar="PORT",
+                      help=f"serve the page at http://127.0.0.1:PORT/ (default {VIEW_PORT}; 0: any free port)")
+    view.add_argument("--world", type=Path, default=None, metavar="WORLD",
+                      help="the world file the recording was made from, for the city (default: the one named by "
+                           "summary.json of the run the recording is in)")
+
     plot = sub.add_parser("plot", help="write PNG plots of a run's drone logs")
     plot.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a directory written by `unetyemu run`")
     return parser
@@ -188,6 +198,8 @@ def main(argv: list[str] | None = None) -> int:
             return cmd_plot(args)
         if args.command == "teleop":
             return cmd_teleop(args)
+        if args.command == "view":
+            return cmd_view(args)
         return cmd_plugins()
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
@@ -330,8 +342,8 @@ def _run(args: argparse.Namespace, stop: _StopOnSignal) -> int:
     stop.sim = sim
     if args.profile:
         sim.profile_steps()
-    if args.rate is None:       # a window or a transport (ROS 2, MAVLink endpoints) means someone is watching
-        rate = 1.0 if (args.gui or sim.transports) else None
+    if args.rate is None:       # a window or a live transport (ROS 2, MAVLink, a viewer) means someone is watching
+        rate = 1.0 if (args.gui or any(name != "record" for name in sim.transports)) else None
     else:
         rate = None if args.rate == float("inf") else args.rate
     if stop.signum is not None:             # stopped while the world was being built
@@ -392,6 +404,39 @@ def cmd_teleop(args: argparse.Namespace) -> int:
     except Ros2Error as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_FAILURE
+
+
+def cmd_view(args: argparse.Namespace) -> int:
+    """Serve a recording in the web view until Ctrl-C (or SIGTERM, SIGHUP): then exit 0."""
+    import threading
+
+    from .view.replay import ReplayError, serve_replay
+    from .view.server import ServerError
+
+    try:
+        server, source = serve_replay(args.recording, port=args.port, world=args.world)
+    except ReplayError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except ServerError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_FAILURE
+    done = threading.Event()
+    old = {sig: signal.signal(sig, lambda signum, frame: done.set()) for sig in STOP_SIGNALS}
+    try:
+        rec = source.rec
+        print(f"view: {server.url}", file=sys.stderr, flush=True)
+        print(f"replaying {args.recording} ({rec.end_s - rec.start_s:.1f} s, {len(rec.tracks)} vehicles"
+              + (f"; {source.scene.note}" if source.scene.note else "") + "); Ctrl-C to stop", file=sys.stderr, flush=True)
+        while not done.wait(0.5):
+            pass
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+        server.stop()
+        source.rec.close()
+    print("view: stopped", file=sys.stderr)
+    return EXIT_OK
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
