@@ -26,8 +26,6 @@ from .worker import ProcessTransport
 
 RECORD_QUEUE_DEPTH = 1024          # snapshots (4 s at 240 Hz) before the oldest are dropped
 BAG_VERSION = 8                    # rosbag2 metadata version that Humble to Jazzy read
-# topics a late subscriber should still get (TransientLocal, KeepLast(1) in the live transport)
-LATCHED_SUFFIXES = ("/tf_static", "/mission/status", "/rosout")
 
 
 def bag_directory(path: str | Path) -> Path:
@@ -65,7 +63,7 @@ class BagBridge:
         if conn is None:
             conn = self._connections[topic] = self._writer.add_connection(
                 topic, msg.__msgtype__, typestore=self._typestore,
-                offered_qos_profiles=_latched_qos() if topic.endswith(LATCHED_SUFFIXES) else ())
+                offered_qos_profiles=offered_qos(topic))
         self._writer.write(conn, self.time_ns, bytes(self._typestore.serialize_cdr(msg, msg.__msgtype__)))
         self.written[topic] = self.written.get(topic, 0) + 1
 
@@ -73,16 +71,22 @@ class BagBridge:
         self._writer.close()
 
 
-def _latched_qos() -> list[Any]:
-    """The offered QoS of a latched topic (reliable, transient local, keep last 1), so that ``ros2 bag
-    play`` republishes it as such; the times are ROS 2's defaults (infinite: 0 s)."""
+def offered_qos(topic: str) -> list[Any]:
+    """The QoS the live ROS 2 transport offers on ``topic`` (reliable; transient local with its depth
+    for the latched topics: ``/tf_static``, mission status, ``/rosout``; else volatile, keep last 10),
+    so that ``ros2 bag play`` republishes each topic as the simulation did. The times are ROS 2's
+    defaults (infinite: 0 s)."""
     from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 
+    from .ros2.dds_backend import VOLATILE_DEPTH, latched_depth
+
+    latched = latched_depth(topic)
     never = QosTime(sec=0, nsec=0)
-    return [Qos(history=QosHistory.KEEP_LAST, depth=1, reliability=QosReliability.RELIABLE,
-                durability=QosDurability.TRANSIENT_LOCAL, deadline=never, lifespan=never,
-                liveliness=QosLiveliness.AUTOMATIC, liveliness_lease_duration=never,
-                avoid_ros_namespace_conventions=False)]
+    return [Qos(history=QosHistory.KEEP_LAST, depth=latched or VOLATILE_DEPTH.get(topic, 10),
+                reliability=QosReliability.RELIABLE,
+                durability=QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
+                deadline=never, lifespan=never, liveliness=QosLiveliness.AUTOMATIC,
+                liveliness_lease_duration=never, avoid_ros_namespace_conventions=False)]
 
 
 class RecordTransport(Ros2Transport):
@@ -146,4 +150,5 @@ def recorder_in_this_process(world: Any, options: TransportOptions) -> RecordTra
     return RecordTransport(world, Path(options.record), tuple(getattr(options, "record_topics", ())))
 
 
-__all__ = ["BagBridge", "RecordTransport", "bag_directory", "create_record_transport", "recorder_in_this_process"]
+__all__ = ["BagBridge", "RecordTransport", "bag_directory", "create_record_transport", "offered_qos",
+           "recorder_in_this_process"]
