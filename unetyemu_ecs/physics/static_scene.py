@@ -20,18 +20,11 @@ import tempfile
 
 import pybullet as p
 
+from unetyemu_ecs.scene.colors import SCENE_RGBA
 from unetyemu_ecs.scene.primitives import Box, Cylinder, SceneClass, SceneLayout
 
 GROUND_FRICTION = 0.9          # dry asphalt/concrete against rubber
-RGBA = {
-    "ground": (0.45, 0.55, 0.40, 1.0),
-    SceneClass.ROAD: (0.25, 0.25, 0.27, 1.0),
-    SceneClass.SIDEWALK: (0.60, 0.60, 0.60, 1.0),
-    SceneClass.BUILDING: (0.82, 0.82, 0.80, 1.0),
-    SceneClass.PAD: (1.00, 0.55, 0.10, 1.0),
-    "trunk": (0.45, 0.30, 0.15, 1.0),
-    "crown": (0.20, 0.55, 0.20, 1.0),
-}
+RGBA = SCENE_RGBA                # the scene classes' colours (shared with the cameras and the web view)
 _HIGH_FRICTION = (SceneClass.ROAD, SceneClass.SIDEWALK)
 
 

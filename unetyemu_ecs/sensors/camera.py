@@ -29,8 +29,7 @@ from ..components.body import Appearance, FleetSlot
 from ..config.limits import MAX_XY_M, SensorRate
 from ..config.schema import Gt, Le, Lt
 from ..phases import Phase
-from ..physics.static_scene import RGBA
-from ..scene.primitives import SceneClass
+from ..scene.colors import class_rgb
 from ..world import StepContext
 from .base import MountedSensor, SensorSpec
 from .raycast_system import RaycastSensorSystem
@@ -173,11 +172,7 @@ class _CameraSystem(RaycastSensorSystem):
                      build=partial(camera_info, time_s, s.frame_id, s.spec.width, s.spec.height, s.spec.hfov_deg))
 
 
-_CLASS_RGB = np.zeros((256, 3))
-for _cls, _key in ((SceneClass.GROUND, "ground"), (SceneClass.ROAD, SceneClass.ROAD), (SceneClass.SIDEWALK, SceneClass.SIDEWALK),
-                   (SceneClass.BUILDING, SceneClass.BUILDING), (SceneClass.PAD, SceneClass.PAD)):
-    _CLASS_RGB[int(_cls)] = RGBA[_key][:3]
-_CLASS_RGB[int(SceneClass.TREE)] = RGBA["crown"][:3]
+_CLASS_RGB = class_rgb()
 
 
 class RgbCameraSystem(_CameraSystem):
