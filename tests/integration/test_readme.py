@@ -27,6 +27,9 @@ SHELL_BLOCKS_TESTED_BY = {
                                   "simulation by a DDS peer)",
     "export RMW_IMPLEMENTATION": "tests/integration/test_ros2_*.py (discovery and topics by DDS peers; "
                                             "ros2 and rviz2 themselves need a ROS 2 install)",
+    "unetyemu run worlds/urban_delivery.yaml --view --foxglove --record": "tests/integration/test_view.py, "
+        "test_foxglove.py and test_record.py (each switch through the CLI on a free port or a temporary path; "
+        "the replay command on a recording)",
     "unetyemu run worlds/mavlink_pair.yaml": "tests/integration/test_mavlink_clients.py (the world with both "
                                              "examples; the MAVSDK flight is a slow test)",
 }
