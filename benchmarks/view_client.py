@@ -3,7 +3,7 @@
     python3 benchmarks/view_client.py foxglove ws://127.0.0.1:PORT [--stall]
     python3 benchmarks/view_client.py view ws://127.0.0.1:PORT/ws [--stall]
 
-``foxglove`` subscribes to every advertised channel (as a Foxglove layout with 3D, Image and Plot
+``foxglove`` (subprotocol foxglove.sdk.v1) subscribes to every advertised channel (as a Foxglove layout with 3D, Image and Plot
 panels over everything would); ``view`` selects drone3 and asks for every LiDAR cloud (the page's
 heaviest setting). Both print ``ready`` once subscribed. Without ``--stall`` they read and count
 everything that arrives; with it they never read again (a stalled client or browser tab). On SIGTERM
@@ -53,7 +53,7 @@ def main() -> int:
         sys.exit(0)
 
     signal.signal(signal.SIGTERM, report)
-    protocols = ["foxglove.websocket.v1"] if kind == "foxglove" else None
+    protocols = ["foxglove.sdk.v1"] if kind == "foxglove" else None        # foxglove-sdk 0.30 speaks only this
     with connect(url, subprotocols=protocols, max_size=None, open_timeout=60) as ws:
         subscriber = Subscriber(ws)
         if kind == "foxglove":

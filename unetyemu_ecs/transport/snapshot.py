@@ -163,6 +163,10 @@ class SnapshotQueue:
     def offered(self) -> int:
         return self._offered
 
+    def __len__(self) -> int:
+        """Snapshots waiting for the consumer."""
+        return len(self._q)
+
     def put(self, snap: Snapshot) -> None:
         """Append (O(1), never blocks for longer than the consumer's own O(1) critical section)."""
         with self._lock:

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import json
 import threading
+from collections.abc import Callable
 from typing import Any
 
 from ..api import CommandPort, Snapshot, TransportError, TransportOptions
@@ -73,7 +74,8 @@ class Ros2Transport:
         self._port = port
         self.bridge = self._open_bridge()
         self._queue.put(first)
-        self._thread = threading.Thread(target=run_consumer, args=(self._queue, self._publish_snapshot, self._stop),
+        self._thread = threading.Thread(target=run_consumer,
+                                        args=(self._queue, self._publish_snapshot, self._stop, self._idle),
                                         name=f"unetyemu-{self.name}-publish", daemon=True)
         self._thread.start()
 
@@ -82,6 +84,15 @@ class Ros2Transport:
         from .bridge import open_bridge
 
         return open_bridge(self.backend, self._kinds, COMMAND_TOPICS, self._on_message, self._parameters)
+
+    # called on the publishing thread after each snapshot and at least every 50 ms (a subclass's timers)
+    _idle: Callable[[], None] | None = None
+
+    def _wants(self, topic: str) -> bool:
+        """Whether the message of ``topic`` is worth building now (a sample's message is built the first
+        time it is read). Always here; a subclass whose consumers subscribe per topic says no for the
+        topics nobody reads."""
+        return True
 
     def offer(self, snapshot: Snapshot) -> None:
         self._queue.put(snapshot)
@@ -140,9 +151,10 @@ class Ros2Transport:
         from ...sensors.messages import stamp
 
         t = snap.sim_time_s
-        self._publish("/clock", self._type("rosgraph_msgs/msg/Clock")(clock=stamp(t)))
+        if self._wants("/clock"):
+            self._publish("/clock", self._type("rosgraph_msgs/msg/Clock")(clock=stamp(t)))
         for sample in snap.sensors:
-            if sample.ros2:
+            if sample.ros2 and self._wants(sample.topic):
                 self._publish(sample.topic, sample.msg)
         String = self._type("std_msgs/msg/String")
         for res in snap.results[self._results_seen:snap.results_end]:
@@ -181,9 +193,13 @@ class Ros2Transport:
             self.bridge.publish(topic, msg)
             self.published += 1
         except Exception as exc:  # a transport failure must not stop the simulation
-            self.publish_errors += 1
-            if topic not in self._failed and len(self._failed) < MAX_ERRORS_KEPT:
-                self._failed[topic] = f"cannot publish: {type(exc).__name__}: {exc}"
+            self._publish_failed(topic, exc)
+
+    def _publish_failed(self, topic: str, exc: Exception) -> None:
+        """Count a message that could not be published; the first error of a topic is kept (counters)."""
+        self.publish_errors += 1
+        if topic not in self._failed and len(self._failed) < MAX_ERRORS_KEPT:
+            self._failed[topic] = f"cannot publish: {type(exc).__name__}: {exc}"
 
 
 def create_ros2_transport(world: Any, options: TransportOptions) -> Ros2Transport | None:
