@@ -39,6 +39,9 @@ from .api import CommandPort, Snapshot, TransportError, TransportOptions
 from .snapshot import SnapshotQueue, run_consumer
 
 SEND_QUEUE_DEPTH = 64          # snapshots waiting to be sent; the worker's own transport queues deeper
+# when the queue is empty, the send thread waits this long [s, wall] before taking the next snapshots, so that
+# it wakes (and takes the interpreter lock from the loop) once for several steps instead of once for each
+BATCH_WAIT_S = 0.02
 START_TIMEOUT_S = 60.0         # importing the worker's modules (numpy, rosbags ...) on a busy machine
 _LEN = struct.Struct("<I")
 
@@ -128,7 +131,8 @@ class ProcessTransport:
         if reply[0] == "error":
             raise TransportError(reply[1])
         self.info = dict(reply[1])
-        self._thread = threading.Thread(target=run_consumer, args=(self._queue, self._send_snapshot, self._stop),
+        self._thread = threading.Thread(target=run_consumer,
+                                        args=(self._queue, self._send_snapshot, self._stop, self._gather),
                                         name=f"unetyemu-{self.name}-send", daemon=True)
         self._thread.start()
 
@@ -204,6 +208,10 @@ class ProcessTransport:
         except (OSError, pickle.PicklingError, TypeError, AttributeError) as exc:
             self.send_errors += 1
             self.error = self.error or f"cannot send to the worker: {type(exc).__name__}: {exc}"
+
+    def _gather(self) -> None:
+        if not len(self._queue):
+            self._stop.wait(BATCH_WAIT_S)
 
     def _send(self, obj: Any) -> None:
         proc = self._proc
