@@ -126,8 +126,8 @@ class ProcessTransport:
             raise TransportError(f"{self.name}: its worker process did not take the world: {exc}") from exc
         reply = self._wait_reply("start", START_TIMEOUT_S)
         if reply is None:
-            raise TransportError(f"{self.name}: its worker process did not start within {START_TIMEOUT_S:.0f} s"
-                                 + (f" ({self.error})" if self.error else ""))
+            why = self.error or f"no answer within {START_TIMEOUT_S:.0f} s"
+            raise TransportError(f"{self.name}: its worker process did not start ({why}; its stderr above says more)")
         if reply[0] == "error":
             raise TransportError(reply[1])
         self.info = dict(reply[1])
