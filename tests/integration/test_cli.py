@@ -99,9 +99,10 @@ def test_plugins_lists_the_builtin_components():
     res = unetyemu("plugins")
     assert res.returncode == 0
     assert "aero_drag" in res.stdout and "unetyemu_ecs.systems:" in res.stdout
-    # AND the transports group, with ROS 2 behind the same seam as any other
+    # AND the transports group, with ROS 2, the recorder and the live views behind the same seam as any other
     transports = res.stdout.split("unetyemu_ecs.transports:")[1]
-    assert transports.lstrip().startswith(("mavlink", "ros2")) and "  ros2 " in transports
+    for name in ("mavlink", "ros2", "record", "foxglove", "view"):
+        assert f"  {name} " in transports, name
 
 
 def _csv_rows(path: Path) -> int:

@@ -142,7 +142,8 @@ def create_record_transport(world: Any, options: TransportOptions) -> ProcessTra
     simulation's process cost the delivery scenario a sixth of its real-time factor, on 2 cores."""
     if getattr(options, "record", None) is None:
         return None
-    return ProcessTransport("record", f"{__name__}:recorder_in_this_process", world, options)
+    return ProcessTransport("record", f"{__name__}:recorder_in_this_process", world, options,
+                            queue_depth=RECORD_QUEUE_DEPTH)
 
 
 def recorder_in_this_process(world: Any, options: TransportOptions) -> RecordTransport:

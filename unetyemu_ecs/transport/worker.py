@@ -38,7 +38,7 @@ from typing import Any
 from .api import CommandPort, Snapshot, TransportError, TransportOptions
 from .snapshot import SnapshotQueue, run_consumer
 
-SEND_QUEUE_DEPTH = 64          # snapshots waiting to be sent; the worker's own transport queues deeper
+SEND_QUEUE_DEPTH = 64          # snapshots waiting to be sent (default; a recorder asks for as many as it keeps)
 # when the queue is empty, the send thread waits this long [s, wall] before taking the next snapshots, so that
 # it wakes (and takes the interpreter lock from the loop) once for several steps instead of once for each
 BATCH_WAIT_S = 0.02
@@ -82,16 +82,18 @@ class ProcessTransport:
     factory : ``"module:function"``; the worker calls ``function(world, options)`` for the real transport
     world, options : what the factory gets (pickled once, at start)
     arrays : the snapshot arrays the real transport reads (none for a recorder of sensor messages)
+    queue_depth : snapshots waiting to be sent before the oldest are dropped (a run faster than the
+        worker, or the send thread's 20 ms naps, must not lose what a recorder is meant to keep)
     """
 
     def __init__(self, name: str, factory: str, world: Any, options: TransportOptions,
-                 arrays: Sequence[str] = ()) -> None:
+                 arrays: Sequence[str] = (), queue_depth: int = SEND_QUEUE_DEPTH) -> None:
         self.name = name
         self.factory = factory
         self._world = world
         self._options = options
         self._arrays = tuple(arrays)
-        self._queue = SnapshotQueue(SEND_QUEUE_DEPTH)
+        self._queue = SnapshotQueue(queue_depth)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._proc: subprocess.Popen | None = None
@@ -189,6 +191,9 @@ class ProcessTransport:
         raise AttributeError(f"{type(self).__name__} {self.__dict__.get('name')!r} has no attribute {name!r}")
 
     def counters(self) -> dict[str, Any]:
+        proc = self._proc
+        if proc is not None and proc.poll() not in (None, 0) and not self.error:
+            self.error = f"the worker process ended with exit status {proc.returncode}"
         counters = dict(self._counters)
         counters["snapshots_offered"] = self._queue.offered
         counters["snapshots_dropped"] = self._queue.dropped + int(counters.get("snapshots_dropped", 0))
