@@ -17,8 +17,10 @@ command results (the worker appends them to lists of its own, so the cursors wor
 worker refuses command submissions (a transport that takes commands runs in the simulation's process).
 
 Frames on both pipes: 4-byte little-endian length, then a pickle. To the worker: ``("start",
-factory, world, options, vehicles, kinds, first)``, ``("snap", slim)``, ``("flush", n, timeout_s)``,
-``("stop", timeout_s)``. Back: ``("ready", info)`` or ``("error", text)`` after start,
+factory, world, options, vehicles, kinds, first)``, ``("flush", n, timeout_s)``,
+``("stop", timeout_s)``, and the snapshots in batches, ``("snaps", [slim, ...])``: one frame for
+all that gathered while the send thread napped (fewer wake-ups and writes, so fewer times the loop
+waits for the interpreter lock). Back: ``("ready", info)`` or ``("error", text)`` after start,
 ``("flushed", n, ok, counters)``, ``("stopped", counters)``. The worker's stderr is this process's,
 so its warnings and tracebacks land in the same log.
 """
@@ -98,6 +100,7 @@ class ProcessTransport:
         self._thread: threading.Thread | None = None
         self._proc: subprocess.Popen | None = None
         self._write_lock = threading.Lock()
+        self._batch: list[tuple] = []                 # slim snapshots gathered, not yet sent (under the lock)
         self._replies: dict[Any, Any] = {}
         self._replied = threading.Condition()
         self._reader: threading.Thread | None = None
@@ -206,17 +209,23 @@ class ProcessTransport:
     def _send_snapshot(self, snap: Snapshot) -> None:
         if self.send_errors:                        # the worker is gone: drop (counted once)
             return
-        item = ("snap", slim(snap, self._arrays, self._events_sent, self._results_sent))
+        item = slim(snap, self._arrays, self._events_sent, self._results_sent)
         self._events_sent, self._results_sent = snap.events_end, snap.results_end
+        with self._write_lock:
+            self._batch.append(item)
+
+    def _gather(self) -> None:
+        """Between snapshots: once the queue is empty, send what was gathered as one frame, then nap."""
+        if len(self._queue):
+            return
         try:
-            self._send(item)
+            self._send(None)
         except (OSError, pickle.PicklingError, TypeError, AttributeError) as exc:
             self.send_errors += 1
             self.error = self.error or f"cannot send to the worker: {type(exc).__name__}: {exc}"
-
-    def _gather(self) -> None:
-        if not len(self._queue):
-            self._stop.wait(BATCH_WAIT_S)
+            with self._write_lock:
+                self._batch.clear()
+        self._stop.wait(BATCH_WAIT_S)
 
     def _send(self, obj: Any) -> None:
         proc = self._proc
@@ -225,8 +234,13 @@ class ProcessTransport:
         self._send_to(proc, obj)
 
     def _send_to(self, proc: subprocess.Popen, obj: Any) -> None:
+        """Write the gathered snapshots (one ``snaps`` frame), then ``obj`` (None: nothing more)."""
         with self._write_lock:
-            self.bytes_sent += write_frame(proc.stdin.fileno(), obj)
+            if self._batch:
+                batch, self._batch = self._batch, []
+                self.bytes_sent += write_frame(proc.stdin.fileno(), ("snaps", batch))
+            if obj is not None:
+                self.bytes_sent += write_frame(proc.stdin.fileno(), obj)
 
     def _alive(self) -> bool:
         return self._proc is not None and self._proc.poll() is None

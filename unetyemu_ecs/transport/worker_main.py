@@ -83,8 +83,9 @@ def serve(inp: Any, out_fd: int) -> int:
                     return 1
                 info = {k: getattr(transport, k) for k in ("url", "port", "path") if hasattr(transport, k)}
                 write_frame(out_fd, ("ready", {k: (str(v) if k == "path" else v) for k, v in info.items()}))
-            elif kind == "snap" and transport is not None and rebuild is not None:
-                transport.offer(rebuild(frame[1]))
+            elif kind == "snaps" and transport is not None and rebuild is not None:
+                for item in frame[1]:
+                    transport.offer(rebuild(item))
             elif kind == "flush" and transport is not None:
                 ok = transport.flush(frame[2])
                 write_frame(out_fd, ("flushed", frame[1], ok, transport.counters()))
