@@ -56,3 +56,45 @@ def test_a_frame_is_a_length_and_a_pickle_and_a_closed_pipe_reads_as_the_end():
             read_frame(stream)
     with pytest.raises(EOFError, match="mid-frame"):
         read_frame(io.BytesIO(b"\x10\x00\x00\x00abc"))          # a frame cut short
+
+
+class NeverDone:
+    """A transport (run in the worker) that never catches up: its flush always reports False."""
+
+    name = "never_done"
+
+    def start(self, port, first) -> None:
+        self.snapshots = 1
+
+    def offer(self, snapshot) -> None:
+        self.snapshots += 1
+
+    def flush(self, timeout_s: float = 2.0) -> bool:
+        return False
+
+    def stop(self, timeout_s: float = 2.0) -> None:
+        pass
+
+    def counters(self) -> dict:
+        return {"snapshots": self.snapshots}
+
+
+def never_done(world, options) -> NeverDone:
+    return NeverDone()
+
+
+def test_a_flush_reports_what_the_worker_s_transport_reported(monkeypatch):
+    from unetyemu_ecs.transport.api import TransportOptions
+    from unetyemu_ecs.transport.worker import ProcessTransport
+
+    from ..conftest import REPO_ROOT
+
+    monkeypatch.chdir(REPO_ROOT)                       # the worker imports this module as tests.unit....
+    transport = ProcessTransport("never_done", f"{__name__}:never_done", None, TransportOptions())
+    transport.start(None, snapshot(0, [], []))
+    try:
+        transport.offer(snapshot(1, [], []))
+        assert transport.flush(30.0) is False          # the worker's transport said it is not done
+        assert transport.counters()["snapshots"] == 2
+    finally:
+        transport.stop()

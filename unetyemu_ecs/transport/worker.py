@@ -4,9 +4,10 @@ A transport thread in the simulation's process still holds the interpreter lock 
 serialises and writes messages; on a 2-core machine the loop then waits for it, and the recording of
 the delivery scenario cost a sixth of its real-time factor that way although the writer had a core
 to itself. :class:`ProcessTransport` keeps in this process only what is cheap: its ``offer`` appends
-the snapshot to a drop-oldest queue (as every transport's does), and its thread sends each one to a
-worker process as one pickle over a pipe (about 40 us for the delivery scenario: the sensor samples
-travel unbuilt, as the functions and copied arrays that build their messages). The worker
+the snapshot to a drop-oldest queue (as every transport's does), and its thread sends what gathered
+every 20 ms to a worker process as one pickle over a pipe (about 40 us per step for the delivery
+scenario: the sensor samples travel unbuilt, as the functions and copied arrays that build their
+messages). The worker
 (:mod:`.worker_main`, started as ``python -m unetyemu_ecs.transport.worker_main``) rebuilds the
 snapshot and hands it to the real transport, which runs there exactly as it would here: its own
 queue, thread and counters.
@@ -158,7 +159,7 @@ class ProcessTransport:
         except OSError:
             return True                             # the worker is gone: nothing more will be handled
         reply = self._wait_reply(key, max(0.0, deadline - time.monotonic()) + 1.0)
-        return bool(reply is not None and reply[1])
+        return bool(reply is not None and reply[2])        # ("flushed", n, ok, counters)
 
     def stop(self, timeout_s: float = 2.0) -> None:
         self._stop.set()
