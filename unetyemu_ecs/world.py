@@ -192,6 +192,15 @@ class EcsWorld:
         self._systems.append((prio, system))
         self._systems.sort(key=lambda ps: -ps[0])
 
+    def remove_system(self, system_type: type) -> None:
+        """Take the system of class ``system_type`` out of this world (``ValueError`` if it has none)."""
+        found = [(prio, s) for prio, s in self._systems if type(s) is system_type]
+        if not found:
+            raise ValueError(f"no {system_type.__name__} in this world")
+        with self.active():
+            esper.remove_processor(system_type)
+        self._systems.remove(found[0])
+
     @property
     def systems(self) -> list[Any]:
         """Systems in the order they run."""

@@ -126,6 +126,23 @@ class PhysicsClient:
             return len(p.getContactPoints(bodyA=body_a, physicsClientId=self.id))
         return len(p.getContactPoints(bodyA=body_a, bodyB=body_b, physicsClientId=self.id))
 
+    def save_state(self) -> int:
+        """Keep the whole physics state in memory (every body's pose and velocity, contacts); its id."""
+        return p.saveState(physicsClientId=self.id)
+
+    def restore_state(self, state_id: int) -> None:
+        """Put the physics back to a state kept by :meth:`save_state` (bodies and constraints added since
+        are not removed: the caller removes them first)."""
+        p.restoreState(stateId=state_id, physicsClientId=self.id)
+        self._contact_points = None
+
+    def reset_body(self, body_id: int, pos_enu_m: Any, quat_xyzw: Any, vel_enu_m_s: Any = (0.0, 0.0, 0.0),
+                   rate_enu_rad_s: Any = (0.0, 0.0, 0.0)) -> None:
+        """Teleport a body: new base pose [m, xyzw] and velocities [m/s, rad/s] (ENU), nothing else changed."""
+        p.resetBasePositionAndOrientation(body_id, list(pos_enu_m), list(quat_xyzw), physicsClientId=self.id)
+        p.resetBaseVelocity(body_id, list(vel_enu_m_s), list(rate_enu_rad_s), physicsClientId=self.id)
+        self._contact_points = None
+
     def remove_body(self, body_id: int) -> None:
         p.removeBody(body_id, physicsClientId=self.id)
         self._contact_points = None

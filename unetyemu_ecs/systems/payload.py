@@ -99,6 +99,11 @@ class PayloadSystem(FleetSystem):
         ctx.services.note(ctx.sim_time_s, ident.name, f"picked up {pkg_name} ({pbody.mass_kg:g} kg)")
         return int(PayloadResult.ATTACHED)
 
+    def release(self, ctx: StepContext, row: int) -> int:
+        """Let go at once of what drone ``row`` carries (an environment's reset; missions ask through
+        ``payload_request``); a PayloadResult."""
+        return self._release(ctx, row)
+
     def _release(self, ctx: StepContext, row: int) -> int:
         f = ctx.fleet
         drone = int(f.entity[row])
