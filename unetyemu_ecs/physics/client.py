@@ -136,6 +136,17 @@ class PhysicsClient:
         p.restoreState(stateId=state_id, physicsClientId=self.id)
         self._contact_points = None
 
+    def drop_contacts(self, body_ids: Any, far_z_m: float = 10_000.0) -> None:
+        """Forget the contact manifolds of ``body_ids``: PyBullet keeps them across :meth:`restore_state`
+        (their points and impulses warm-start the next solve), so a body put back where it touched
+        something would start from forces of another time. Each body is lifted far apart and the
+        contacts computed once, which drops them; the caller puts the bodies where they belong next."""
+        for k, body in enumerate(np.asarray(body_ids).tolist()):
+            p.resetBasePositionAndOrientation(int(body), (0.0, 50.0 * k, far_z_m), (0.0, 0.0, 0.0, 1.0),
+                                              physicsClientId=self.id)
+        p.performCollisionDetection(physicsClientId=self.id)
+        self._contact_points = None
+
     def reset_body(self, body_id: int, pos_enu_m: Any, quat_xyzw: Any, vel_enu_m_s: Any = (0.0, 0.0, 0.0),
                    rate_enu_rad_s: Any = (0.0, 0.0, 0.0)) -> None:
         """Teleport a body: new base pose [m, xyzw] and velocities [m/s, rad/s] (ENU), nothing else changed."""

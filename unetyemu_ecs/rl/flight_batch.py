@@ -195,8 +195,9 @@ class FlightBatch:
         noise streams (reseeded from ``seed`` when given), payloads released, newest sensor samples gone."""
         sim, saved = self.sim, self._saved
         self._release(np.arange(len(self.names)))
-        sim.physics.restore_state(saved.physics_state)
         f = sim.fleet
+        sim.physics.drop_contacts(f.body_id[f.rows])     # then every body back where it was saved
+        sim.physics.restore_state(saved.physics_state)
         for name, values in saved.arrays.items():
             getattr(f, name)[...] = values
         sim.step_count = saved.step_count
@@ -209,6 +210,7 @@ class FlightBatch:
         sim.services.sensors.latest.clear()
         if self._impacts is not None:
             self._impacts._last_touch_s.clear()
+            self._impacts.forget_motion(f)
         self.last_action[:] = 0.0
 
     def _release(self, k: np.ndarray) -> None:
@@ -257,6 +259,8 @@ class FlightBatch:
             sim._state.prime(sim._context())
         keep[rows] = 0.0
         f.acc_enu_m_s2[...] = keep
+        if self._impacts is not None:
+            self._impacts.forget_motion(f)
 
     def measure_sensors(self) -> None:
         """Take every sensor's measurement now (after a reset, so the first observation has them)."""

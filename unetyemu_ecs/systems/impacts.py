@@ -10,6 +10,8 @@ keeps the previous step's velocities (the approach) for the test.
 
 from __future__ import annotations
 
+from typing import Any
+
 import esper
 import numpy as np
 
@@ -78,6 +80,12 @@ class ImpactMonitorSystem(esper.Processor):
         if len(last) > 4 * len(now) + 64:        # forget pairs long apart (bounded memory)
             self._last_touch_s = {k: v for k, v in last.items() if t - v <= IMPACT_REARM_S}
         np.copyto(self._vel_before, f.vel_enu_m_s)
+
+    def forget_motion(self, fleet: Any) -> None:
+        """Judge the next contacts by the bodies' velocities now (after bodies were moved by hand: a
+        vehicle put back at rest must not "hit" what it touches at the speed it had before)."""
+        if self._vel_before.shape == fleet.vel_enu_m_s.shape:
+            np.copyto(self._vel_before, fleet.vel_enu_m_s)
 
     def _velocity(self, body: int) -> np.ndarray:
         """Velocity [m/s] of ``body`` before this step (zero for static bodies)."""
