@@ -178,7 +178,7 @@ def test_copies_in_one_batch_end_their_episodes_independently():
 
 
 def test_the_batched_and_the_subprocess_vector_envs_come_from_gymnasium_make_vec():
-    batched = gym.make_vec("unetyemu/Hover-v0", num_envs=4, vectorization_mode="vector_entry_point")
+    batched = gym.make_vec("unetyemu/Hover-v0", num_envs=16, vectorization_mode="vector_entry_point")
     procs = gym.make_vec("unetyemu/Hover-v0", num_envs=2, vectorization_mode="async")
     try:
         assert isinstance(batched.unwrapped, DroneVectorEnv)

@@ -192,7 +192,8 @@ class FlightBatch:
 
     def restore(self, seed: int | None = None) -> None:
         """The whole batch back to the saved state: physics, fleet arrays, sim clock, sensor schedules and
-        noise streams (reseeded from ``seed`` when given), payloads released, newest sensor samples gone."""
+        noise streams (reseeded from ``seed`` when given), payloads released, newest sensor samples and
+        the event notices of the episodes before gone."""
         sim, saved = self.sim, self._saved
         self._release(np.arange(len(self.names)))
         f = sim.fleet
@@ -208,6 +209,7 @@ class FlightBatch:
                 mounted.next_due_s = due_s
             system._rng.clear()                     # noise streams start again from the (new) seed
         sim.services.sensors.latest.clear()
+        sim.services.events.clear()                 # a notice per pickup or impact: bounded over a long training
         if self._impacts is not None:
             self._impacts._last_touch_s.clear()
             self._impacts.forget_motion(f)

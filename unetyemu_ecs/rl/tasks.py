@@ -1,7 +1,7 @@
 """The single-drone tasks: their worlds, starts, state observations, rewards and terminations.
 
 Every task is written for N copies at once (a single environment is a batch of one). Copy ``i`` has
-its own patch of the world, ``origin = (i * spacing, 0, 0)``: far enough apart that copies never
+its own patch of the world, ``origin = ((i - (N - 1) / 2) * spacing, 0, 0)``: far enough apart that copies never
 touch, and that no copy's sensors reach another's. Rewards and terminations, per control step:
 
 **Hover** (``unetyemu/Hover-v0``, default level ``motors``, 8 s): hold the point 2 m above the
@@ -65,7 +65,7 @@ class DroneTask:
     def __init__(self, n: int) -> None:
         self.n = n
         self.origin = np.zeros((n, 3))
-        self.origin[:, 0] = self.spacing_m * np.arange(n)
+        self.origin[:, 0] = self.spacing_m * (np.arange(n) - (n - 1) / 2.0)    # centred on the world's origin
         self.drones = [f"drone_{i}" for i in range(n)]
         self.prev_impacts = np.zeros(n, dtype=np.int64)
 
