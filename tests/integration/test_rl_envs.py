@@ -10,6 +10,7 @@ gym = pytest.importorskip("gymnasium")
 
 import unetyemu_ecs.rl  # noqa: E402  (registers the ids)
 from gymnasium.utils.env_checker import check_env  # noqa: E402
+from unetyemu_ecs.components.body import RigidBody  # noqa: E402
 from unetyemu_ecs.rl.envs import DroneEnv, DroneVectorEnv  # noqa: E402
 from unetyemu_ecs.units import GRAVITY_M_S2  # noqa: E402
 
@@ -52,8 +53,7 @@ def test_hover_thrust_on_every_motor_holds_the_drone_still():
         assert np.allclose(pos, [0.0, 0.0, 2.0], atol=0.01)
         assert info["distance_m"] < 0.01 and not terminated
         thrust = env.batch.sim.fleet.motor_thrust_n[env.batch.rows[0]]
-        mass = env.batch.sim.component("drone_0", __import__("unetyemu_ecs.components.body",
-                                                               fromlist=["RigidBody"]).RigidBody).mass_kg
+        mass = env.batch.sim.component("drone_0", RigidBody).mass_kg
         assert thrust.sum() == pytest.approx(mass * GRAVITY_M_S2, rel=1e-9)
     finally:
         env.close()
