@@ -154,8 +154,8 @@ def main(argv: list[str] | None = None) -> int:
             if not buf:
                 return
             row = {"timesteps": self.num_timesteps, "wall_s": round(time.perf_counter() - t0, 2),
-                   "mean_return": float(np.mean([e["r"] for e in buf])),
-                   "mean_length": float(np.mean([e["l"] for e in buf]))}
+                   "mean_return": round(float(np.mean([e["r"] for e in buf])), 3),
+                   "mean_length": round(float(np.mean([e["l"] for e in buf])), 2)}
             rows.append(row)
             if len(rows) % 10 == 1:
                 say(f"{row['timesteps']:>9d} steps  {row['wall_s']:7.1f} s  "
