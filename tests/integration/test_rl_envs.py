@@ -226,6 +226,11 @@ def test_bad_settings_are_refused_with_a_message_naming_them(kwargs, match):
         DroneEnv(**kwargs)
 
 
+def test_more_copies_than_the_world_holds_are_refused_before_anything_is_built():
+    with pytest.raises(ValueError, match=r"waypoints: at most 398 copies fit in the world"):
+        DroneVectorEnv("waypoints", 399)
+
+
 def test_an_action_of_the_wrong_shape_names_what_an_action_is():
     env = DroneEnv("delivery")
     try:

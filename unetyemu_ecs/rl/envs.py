@@ -24,6 +24,7 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from ..config.limits import MAX_XY_M
 from .actions import ACTION_LABELS, ACTION_LEVELS
 from .flight_batch import FlightBatch
 from .observations import SENSOR_PARTS, SensorSetup, check_parts, part_bounds, read_part, sensor_components
@@ -71,6 +72,10 @@ class _Copies:
             raise ValueError(f"task must be one of {', '.join(TASKS)}, got {task!r}")
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= MAX_COPIES:
             raise ValueError(f"the number of copies must be an integer in [1, {MAX_COPIES}], got {n!r}")
+        most = min(MAX_COPIES, int(2.0 * MAX_XY_M // TASKS[task].spacing_m) - 2)   # the ground under every copy
+        if n > most:
+            raise ValueError(f"{task}: at most {most} copies fit in the world (each {TASKS[task].spacing_m:g} m "
+                             f"apart on a ground of at most {2.0 * MAX_XY_M:g} m), got {n}")
         self.task: DroneTask = TASKS[task](int(n))
         level = self.task.default_level if action_level is None else action_level
         if level not in ACTION_LEVELS:
