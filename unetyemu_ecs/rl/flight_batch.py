@@ -35,6 +35,7 @@ from ..sensors.tf import TransformSystem
 from ..systems.commands import InboxSystem, UnclaimedCommandSystem
 from ..systems.controllers import AttitudeControllerSystem, MixerSystem, PositionControllerSystem
 from ..systems.flight_commands import FlightCommandSystem
+from ..systems.fleet_system import stack_params
 from ..systems.flight_state import MODE_ATTITUDE, MODE_VELOCITY
 from ..systems.guidance import RouteFollowingSystem
 from ..systems.impacts import ImpactMonitorSystem
@@ -103,26 +104,24 @@ class FlightBatch:
     drones : the names of the drones the agent flies, in the order of the action's rows
     level : ``motors``, ``rates``, ``attitude`` or ``velocity``
     control_hz : actions per simulated second; the world's ``physics_hz`` must be a whole multiple
-    keep_commands : keep the simulation's command inbox (cars driven through :meth:`Simulation.cmd_vel`)
     max_speed_m_s : horizontal speed of a full velocity action (None: each drone's cruise speed)
     max_rate_rad_s : body rate of a full rates action
     """
 
     def __init__(self, world_text: str, drones: list[str], level: str, control_hz: float, *,
-                 keep_commands: bool = False, max_speed_m_s: float | None = None,
+                 max_speed_m_s: float | None = None,
                  max_rate_rad_s: float = DEFAULT_MAX_RATE_RAD_S, file: str = "<environment>") -> None:
         if level not in ACTION_LEVELS:
             raise ValueError(f"action level must be one of {', '.join(ACTION_LEVELS)}, got {level!r}")
         self.level = level
         self.sim = Simulation(load_world_text(world_text, file=file))
         try:
-            self._build(drones, control_hz, keep_commands, max_speed_m_s, max_rate_rad_s)
+            self._build(drones, control_hz, max_speed_m_s, max_rate_rad_s)
         except BaseException:
             self.sim.close()
             raise
 
-    def _build(self, drones: list[str], control_hz: float, keep_commands: bool, max_speed_m_s: float | None,
-               max_rate_rad_s: float) -> None:
+    def _build(self, drones: list[str], control_hz: float, max_speed_m_s: float | None, max_rate_rad_s: float) -> None:
         sim = self.sim
         physics_hz = 1.0 / sim.dt_s
         if not (math.isfinite(control_hz) and 0 < control_hz <= physics_hz):
@@ -135,9 +134,9 @@ class FlightBatch:
         self.names = list(drones)
         self.rows = np.array([sim.row(n) for n in drones], dtype=np.intp)
         self.bodies = [sim.component(n, RigidBody).body_id for n in drones]
-        removed = _FLYING_SYSTEMS + (() if keep_commands else _COMMAND_SYSTEMS)
+        removed = _FLYING_SYSTEMS + _COMMAND_SYSTEMS + _LAYERS_ABOVE[self.level]
         for system in list(sim.ecs.systems):
-            if isinstance(system, removed + _LAYERS_ABOVE[self.level]):
+            if isinstance(system, removed):
                 sim.ecs.remove_system(type(system))
         motors = [sim.component(n, QuadrotorMotors) for n in drones]
         limits = [sim.component(n, GuidanceLimits) for n in drones]
@@ -158,10 +157,7 @@ class FlightBatch:
         if self.level == "rates":
             with sim.ecs.active():
                 gains = [esper.try_component(sim.entity(n), StabilizerGains) or StabilizerGains() for n in drones]
-            stacked = StabilizerGains(**{k: np.array([getattr(g, k) for g in gains])
-                                         for k in ("gain_vz_p", "gain_vz_i", "gain_vz_d", "lim_vz_int_m_s",
-                                                   "gain_att_p", "gain_rate_d", "gain_yaw_rate_p")})
-            sim.ecs.add_system(BodyRateSystem(self.rows, stacked))
+            sim.ecs.add_system(BodyRateSystem(self.rows, stack_params(gains, StabilizerGains)))
         self._payload = next((s for s in sim.ecs.systems if isinstance(s, PayloadSystem)), None)
         self._impacts = next((s for s in sim.ecs.systems if isinstance(s, ImpactMonitorSystem)), None)
         self._sensors = [s for s in sim.ecs.systems if isinstance(s, SensorSystemBase)]
@@ -225,9 +221,9 @@ class FlightBatch:
                     self._payload.release(ctx, int(self.rows[i]))
 
     def place(self, k: np.ndarray, pos_enu_m: np.ndarray, yaw_rad: np.ndarray,
-              vel_enu_m_s: np.ndarray | None = None, *, restore_rows: bool = True) -> None:
+              vel_enu_m_s: np.ndarray | None = None) -> None:
         """Start drones ``k`` (indices into :attr:`names`) again: what they carry released, their fleet rows
-        back to the saved state (``restore_rows``), then at ``pos_enu_m`` (K, 3) [m] facing ``yaw_rad`` (K,)
+        back to the saved state, then at ``pos_enu_m`` (K, 3) [m] facing ``yaw_rad`` (K,)
         [rad, ENU] with velocity ``vel_enu_m_s`` (K, 3) [m/s] (default at rest), hovering."""
         k = np.asarray(k, dtype=np.intp).reshape(-1)
         pos = np.asarray(pos_enu_m, dtype=float).reshape(-1, 3)
@@ -236,20 +232,23 @@ class FlightBatch:
         self._release(k)
         f = self.sim.fleet
         rows = self.rows[k]
-        if restore_rows:
-            for name, values in self._saved.arrays.items():
-                getattr(f, name)[rows] = values[rows]
+        for name, values in self._saved.arrays.items():
+            getattr(f, name)[rows] = values[rows]
         for i, row_k in enumerate(k.tolist()):
             quat = quat_xyzw_from_euler_rpy(0.0, 0.0, float(yaw[i]))
             self.sim.physics.reset_body(self.bodies[row_k], pos[i], quat, vel[i])
         self.last_action[k] = 0.0
         self.refresh_state(rows)
 
-    def place_body(self, name: str, pos_enu_m: Any, yaw_rad: float = 0.0) -> None:
-        """Put body ``name`` (a package, another vehicle) at ``pos_enu_m`` [m] facing ``yaw_rad``, at rest."""
-        body = self.sim.component(name, RigidBody).body_id
-        self.sim.physics.reset_body(body, np.asarray(pos_enu_m, dtype=float), quat_xyzw_from_euler_rpy(0.0, 0.0, yaw_rad))
-        self.refresh_state(np.array([self.sim.row(name)], dtype=np.intp))
+    def place_bodies(self, names: list[str], pos_enu_m: Any, yaw_rad: Any = 0.0) -> None:
+        """Put bodies ``names`` (packages, other vehicles) at ``pos_enu_m`` (K, 3) [m] facing ``yaw_rad``
+        (K,) or one for all [rad], at rest."""
+        pos = np.asarray(pos_enu_m, dtype=float).reshape(-1, 3)
+        yaw = np.broadcast_to(np.asarray(yaw_rad, dtype=float), (len(names),))
+        for name, p_i, yaw_i in zip(names, pos, yaw.tolist()):
+            body = self.sim.component(name, RigidBody).body_id
+            self.sim.physics.reset_body(body, p_i, quat_xyzw_from_euler_rpy(0.0, 0.0, yaw_i))
+        self.refresh_state(np.array([self.sim.row(name) for name in names], dtype=np.intp))
 
     def refresh_state(self, rows: np.ndarray) -> None:
         """Read the physics into the fleet arrays again after bodies were moved; ``rows`` start with zero

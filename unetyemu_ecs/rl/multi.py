@@ -248,8 +248,8 @@ class CityParallelEnv(ParallelEnv):
         self.agents: list[str] = []
         text = city_world_text(n_drones, n_cars, blocks=tuple(blocks), city_seed=city_seed,
                                drone_preset=drone_preset, car_preset=car_preset)
-        self._batch = FlightBatch(text, self.drones, "velocity", CONTROL_HZ, keep_commands=True,
-                                  max_speed_m_s=drone_max_speed_m_s, file="<CityParallelEnv>")
+        self._batch = FlightBatch(text, self.drones, "velocity", CONTROL_HZ, max_speed_m_s=drone_max_speed_m_s,
+                                  file="<CityParallelEnv>")
         self._closed = False
         try:
             self._setup()
@@ -316,8 +316,8 @@ class CityParallelEnv(ParallelEnv):
         nd = len(self.drones)
         if nd:
             batch.place(np.arange(nd), starts[:nd, :3], starts[:nd, 3])
-        for i, car in enumerate(self.cars):
-            batch.place_body(car, [*starts[nd + i, :2], self._car_z_m[i]], float(starts[nd + i, 3]))
+        if self.cars:
+            batch.place_bodies(self.cars, np.column_stack([starts[nd:, :2], self._car_z_m]), starts[nd:, 3])
         self.agents = list(self.possible_agents)
         self._was_reset = True
         self._live[:] = True

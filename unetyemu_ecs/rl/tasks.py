@@ -286,8 +286,8 @@ class DeliveryTask(DroneTask):
         pos = self.origin[k] + self.rest_offset_m() + np.column_stack([rng.uniform(-1.0, 1.0, (m, 2)),
                                                                         rng.uniform(-0.5, 0.5, m)])
         batch.place(k, pos, rng.uniform(-np.pi, np.pi, m))
-        for i in np.asarray(k).tolist():                    # after place() let go of it
-            batch.place_body(self.packages[i], self._package_rest[i])
+        # the packages after place() let go of them
+        batch.place_bodies([self.packages[i] for i in np.asarray(k).tolist()], self._package_rest[k])
         self.carrying[k] = False
         self.picked[k] = False
         self.last_grip[k] = 0.0
