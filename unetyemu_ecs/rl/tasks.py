@@ -112,8 +112,11 @@ class DroneTask:
         f, r = batch.sim.fleet, batch.rows
         return f.pos_enu_m[r], f.vel_enu_m_s[r], f.quat_enu_flu_xyzw[r], f.rate_flu_rad_s[r]
 
-    def _failures(self, batch: FlightBatch, impacts: np.ndarray) -> dict[str, np.ndarray]:
+    def _failures(self, batch: FlightBatch, reward: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """``(reward, failed, flags)``: the step's reward, -:data:`CRASH_PENALTY` where the copy crashed, went
+        out of bounds or emptied its battery; which copies failed; and each reason, by name."""
         f, r = batch.sim.fleet, batch.rows
+        impacts = self._drone_impacts(batch)
         pos = f.pos_enu_m[r]
         rel = pos - self.origin
         upside_down = f.R_enu_flu[r, 2, 2] < 0.0
@@ -121,7 +124,9 @@ class DroneTask:
         out = (np.hypot(rel[:, 0], rel[:, 1]) > self.bounds_m[0]) | (rel[:, 2] > self.bounds_m[1])
         battery = f.soc_frac[r] <= 0.0
         self.prev_impacts = impacts.copy()
-        return {"crashed": crashed, "out_of_bounds": out & ~crashed, "battery_empty": battery}
+        failed = crashed | out | battery
+        return (np.where(failed, -CRASH_PENALTY, reward), failed,
+                {"crashed": crashed, "out_of_bounds": out & ~crashed, "battery_empty": battery})
 
     def _drone_impacts(self, batch: FlightBatch) -> np.ndarray:
         return batch.impacts()
@@ -155,10 +160,8 @@ class HoverTask(DroneTask):
     def outcome(self, batch: FlightBatch) -> Outcome:
         pos, _vel, _quat, rate = self._body_state(batch)
         dist = np.linalg.norm(self.goal - pos, axis=1)
-        fail = self._failures(batch, self._drone_impacts(batch))
         reward = np.maximum(0.0, 1.0 - dist / 2.0) - 0.01 * np.linalg.norm(rate, axis=1)
-        failed = fail["crashed"] | fail["out_of_bounds"] | fail["battery_empty"]
-        reward = np.where(failed, -CRASH_PENALTY, reward)
+        reward, failed, fail = self._failures(batch, reward)
         return Outcome(reward, failed, {"distance_m": dist, "is_success": np.zeros(self.n, dtype=bool), **fail})
 
 
@@ -214,9 +217,7 @@ class WaypointsTask(DroneTask):
         success = self.index >= self.count
         wp_new, _ = self._current()
         self.prev_dist = np.where(reached, np.linalg.norm(wp_new - pos, axis=1), dist)
-        fail = self._failures(batch, self._drone_impacts(batch))
-        failed = fail["crashed"] | fail["out_of_bounds"] | fail["battery_empty"]
-        reward = np.where(failed, -CRASH_PENALTY, reward)
+        reward, failed, fail = self._failures(batch, reward)
         return Outcome(reward, failed | success, {"distance_m": dist, "waypoints_reached": self.index.copy(),
                                                    "is_success": success & ~failed, **fail})
 
@@ -240,11 +241,13 @@ class DeliveryTask(DroneTask):
         super().__init__(n)
         self.packages = [f"package_{i}" for i in range(n)]
         self.drop = self.origin + self.drop_offset_m
+        self.drop_point = self.drop + np.array([0.0, 0.0, 1.0])     # where a drone lets go, 1 m above the pad [m]
         self.carrying = np.zeros(n, dtype=bool)
         self.picked = np.zeros(n, dtype=bool)
         self.prev_dist = np.zeros(n)
         self.last_grip = np.zeros(n)
         self._package_rest: np.ndarray | None = None      # each package's pose in the saved state [m]
+        self._pkg_rows: np.ndarray | None = None
         self._pkg_impacts_seen: np.ndarray | None = None
         self._pkg_impacts_carried = np.zeros(n, dtype=np.int64)
 
@@ -271,9 +274,13 @@ class DeliveryTask(DroneTask):
     def rest_offset_m(self) -> np.ndarray:
         return np.array([-3.0, 0.0, 2.0])
 
+    def _package_rows(self, batch: FlightBatch) -> np.ndarray:
+        if self._pkg_rows is None:                         # the packages' fleet rows never change
+            self._pkg_rows = np.array([batch.sim.row(p) for p in self.packages], dtype=np.intp)
+        return self._pkg_rows
+
     def _package_pos(self, batch: FlightBatch) -> np.ndarray:
-        f = batch.sim.fleet
-        return np.array([f.pos_enu_m[batch.sim.row(p)] for p in self.packages])
+        return batch.sim.fleet.pos_enu_m[self._package_rows(batch)]
 
     def _grab_point(self, batch: FlightBatch) -> np.ndarray:
         """Where the drone's centre is when the package is within its reach (just above the package)."""
@@ -307,7 +314,7 @@ class DeliveryTask(DroneTask):
 
     def _drone_impacts(self, batch: FlightBatch) -> np.ndarray:
         f = batch.sim.fleet
-        pkg_rows = np.array([batch.sim.row(p) for p in self.packages])
+        pkg_rows = self._package_rows(batch)
         # the drone's impacts plus those of the package while it carries it (a carried package that hits a
         # wall is the drone's crash; one hit while it lies on the ground or falls is not)
         seen = self._pkg_impacts_seen if self._pkg_impacts_seen is not None else f.impacts[pkg_rows]
@@ -318,7 +325,7 @@ class DeliveryTask(DroneTask):
     def state(self, batch: FlightBatch) -> np.ndarray:
         pos, vel, quat, rate = self._body_state(batch)
         f = batch.sim.fleet
-        return np.hstack([self._grab_point(batch) - pos, self.drop + np.array([0.0, 0.0, 1.0]) - pos,
+        return np.hstack([self._grab_point(batch) - pos, self.drop_point - pos,
                           self.carrying[:, None].astype(float), vel, quat, rate, f.soc_frac[batch.rows][:, None],
                           batch.last_action[:, :4], self.last_grip[:, None]])
 
@@ -335,15 +342,13 @@ class DeliveryTask(DroneTask):
         dropped = let_go & ~over_pad
         self.carrying = carrying_now
         self.picked |= picked_up
-        goal = np.where(carrying_now[:, None] | self.picked[:, None], self.drop + np.array([0.0, 0.0, 1.0]),
+        goal = np.where(carrying_now[:, None] | self.picked[:, None], self.drop_point,
                         self._grab_point(batch))
         dist = np.linalg.norm(goal - pos, axis=1)
         progress = np.where(picked_up | let_go, 0.0, self.prev_dist - dist)
         self.prev_dist = dist
         reward = progress - STEP_COST + 10.0 * picked_up + 20.0 * delivered - CRASH_PENALTY * dropped
-        fail = self._failures(batch, self._drone_impacts(batch))
-        failed = fail["crashed"] | fail["out_of_bounds"] | fail["battery_empty"]
-        reward = np.where(failed, -CRASH_PENALTY, reward)
+        reward, failed, fail = self._failures(batch, reward)
         return Outcome(reward, failed | delivered | dropped,
                        {"distance_m": dist, "carrying": carrying_now.copy(), "package_dropped": dropped & ~failed,
                         "is_success": delivered & ~failed, **fail})
