@@ -27,32 +27,13 @@ from gymnasium.vector.utils import batch_space
 from ..config.limits import MAX_XY_M
 from .actions import ACTION_LABELS, ACTION_LEVELS
 from .flight_batch import FlightBatch
-from .observations import SENSOR_PARTS, SensorSetup, check_parts, part_bounds, read_part, sensor_components
+from .observations import (SENSOR_PARTS, SensorSetup, bounds_by_unit, check_parts, part_bounds, read_part,
+                           sensor_components)
 from .tasks import TASKS, DroneTask
 
 RENDER_SIZE = (240, 320)          # (height, width) of an rgb_array frame [px]
 MAX_COPIES = 1024
-
-
-def state_bounds(labels: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
-    """Physically meaningful bounds of each state element, from its name's unit: distances within
-    500 m, speeds within 60 m/s, body rates within 100 rad/s, quaternion parts and actions within
-    [-1, 1], fractions and flags within [0, 1]."""
-    low, high = [], []
-    for label in labels:
-        if label.endswith("_rad_s"):
-            lim = (-100.0, 100.0)
-        elif label.endswith("_m_s"):
-            lim = (-60.0, 60.0)
-        elif label.endswith("_m"):
-            lim = (-500.0, 500.0)
-        elif label in ("done_frac", "carrying", "soc"):
-            lim = (0.0, 1.0)
-        else:                                   # quaternion parts, last actions
-            lim = (-1.0, 1.0)
-        low.append(lim[0])
-        high.append(lim[1])
-    return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
+MAX_STATE_DISTANCE_M = 500.0      # bounds of a distance in a task's state [m]
 
 
 def _check_number(name: str, value: Any, low: float, high: float) -> float:
@@ -98,7 +79,7 @@ class _Copies:
         self.full_voltage_v = self.batch.sim.fleet.pack_voltage_v[self.batch.rows].copy()
         n_act = 4 + self.task.extra_actions
         self.action_space = spaces.Box(-1.0, 1.0, (n_act,), dtype=np.float32)
-        self.state_low, self.state_high = state_bounds(self.task.state_labels)
+        self.state_low, self.state_high = bounds_by_unit(self.task.state_labels, MAX_STATE_DISTANCE_M)
         state = spaces.Box(self.state_low, self.state_high, dtype=np.float32)
         if self.parts == ("state",):
             self.observation_space: spaces.Space = state

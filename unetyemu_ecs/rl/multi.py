@@ -67,9 +67,11 @@ from gymnasium import logger, spaces
 from pettingzoo import ParallelEnv
 
 from ..app import SimulationClosedError
+from ..frames import yaw_rad_from_quat_xyzw
 from ..scene.primitives import Box, SceneClass
 from ..systems.car_state import DriveMode, set_path
 from .flight_batch import FlightBatch
+from .observations import bounds_by_unit
 
 CONTROL_HZ = 30.0                 # actions per simulated second
 PHYSICS_HZ = 240                  # physics steps per simulated second (8 per action)
@@ -85,9 +87,7 @@ STREET_MARGIN_M = 8.0             # sampled points keep this far from a street s
 GOAL_REWARD = 10.0
 IMPACT_PENALTY = 10.0             # a new impact, or leaving the city
 TIME_PENALTY = 0.01               # per control step
-MAX_OBS_M = 1000.0                # bounds of the observation's positions [m], speeds, rates:
-MAX_OBS_M_S = 60.0                # [m/s]
-MAX_OBS_RAD_S = 100.0             # [rad/s]
+MAX_OBS_M = 1000.0                # bounds of the observation's positions [m] (speeds, rates: observations.py)
 _SAMPLE_TRIES = 200
 
 _NEAREST = ("nearest_dx_m", "nearest_dy_m", "nearest_dz_m", "nearest_dvx_m_s", "nearest_dvy_m_s", "nearest_dvz_m_s")
@@ -114,14 +114,6 @@ def city_world_text(n_drones: int, n_cars: int, *, blocks: tuple[int, int] = (2,
         f"          building_height_m: [8, 40], start_pads: {max(n_drones, 1)}, target_pads: 0, roof_pads: 0,",
         f"          parking_spots: {max(n_cars, 1)}}}",
         "vehicles:", *vehicles, ""])
-
-
-def obs_bounds(labels: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
-    """Bounds of each observation element from its name's unit: positions within :data:`MAX_OBS_M`,
-    speeds :data:`MAX_OBS_M_S`, rates :data:`MAX_OBS_RAD_S`, quaternion parts and cos/sin within [-1, 1]."""
-    lim = np.array([MAX_OBS_RAD_S if s.endswith("_rad_s") else MAX_OBS_M_S if s.endswith("_m_s")
-                    else MAX_OBS_M if s.endswith("_m") else 1.0 for s in labels], dtype=np.float32)
-    return -lim, lim
 
 
 # -- the streets -------------------------------------------------------------------------------------
@@ -173,12 +165,6 @@ def nearest_others(pos: np.ndarray, vel: np.ndarray) -> tuple[np.ndarray, np.nda
     np.fill_diagonal(dist, np.inf)
     j = np.argmin(dist, axis=1)
     return pos[j] - pos, vel[j] - vel
-
-
-def yaw_of(quat_xyzw: np.ndarray) -> np.ndarray:
-    """Heading [rad, CCW from east] of body FLU attitudes (N, 4) xyzw."""
-    x, y, z, w = quat_xyzw.T
-    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
 def _what_was_hit(events: list[tuple[float, str, str]], name: str) -> str:
@@ -268,8 +254,8 @@ class CityParallelEnv(ParallelEnv):
         self._streets = street_segments(sim.layout)
         self._lo_m, self._hi_m = sim.layout.extent_min_m.copy(), sim.layout.extent_max_m.copy()
         self._radius_m = np.where(self._is_drone, DRONE_GOAL_RADIUS_M, CAR_GOAL_RADIUS_M)
-        drone_lo, drone_hi = obs_bounds(DRONE_OBS_LABELS)
-        car_lo, car_hi = obs_bounds(CAR_OBS_LABELS)
+        drone_lo, drone_hi = bounds_by_unit(DRONE_OBS_LABELS, MAX_OBS_M)
+        car_lo, car_hi = bounds_by_unit(CAR_OBS_LABELS, MAX_OBS_M)
         self.observation_spaces = {a: spaces.Box(drone_lo, drone_hi, dtype=np.float32) for a in self.drones}
         self.observation_spaces |= {a: spaces.Box(car_lo, car_hi, dtype=np.float32) for a in self.cars}
         self.action_spaces = {a: spaces.Box(-1.0, 1.0, (4,), dtype=np.float32) for a in self.drones}
@@ -495,7 +481,7 @@ class CityParallelEnv(ParallelEnv):
         near_pos, near_vel = nearest_others(pos, vel)
         common = np.concatenate([self._goal - pos, vel], axis=1)
         quat, rates = f.quat_enu_flu_xyzw[rows], f.rate_flu_rad_s[rows]
-        yaw = yaw_of(quat)
+        yaw = yaw_rad_from_quat_xyzw(quat)
         drone = np.concatenate([common, quat, rates, near_pos, near_vel], axis=1)
         car = np.concatenate([common, np.cos(yaw)[:, None], np.sin(yaw)[:, None], rates[:, 2:3], near_pos,
                               near_vel], axis=1)
@@ -586,5 +572,5 @@ def _apply_options(options: dict | None, agents: list[str], starts: np.ndarray, 
 
 
 __all__ = ["CAR_MAX_SPEED_M_S", "CAR_MAX_YAW_RATE_RAD_S", "CAR_OBS_LABELS", "CONTROL_HZ", "CityParallelEnv",
-           "DRONE_OBS_LABELS", "city_world_text", "nearest_others", "obs_bounds", "sample_street_point",
-           "street_segments", "yaw_of"]
+           "DRONE_OBS_LABELS", "city_world_text", "nearest_others", "sample_street_point",
+           "street_segments"]

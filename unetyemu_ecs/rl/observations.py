@@ -68,6 +68,33 @@ class SensorSetup:
             raise ValueError(f"depth_hfov_deg must be in [10, 170] deg, got {self.depth_hfov_deg!r}")
 
 
+MAX_OBS_SPEED_M_S = 60.0          # bounds of a speed in an observation [m/s]
+MAX_OBS_RATE_RAD_S = 100.0        # of a body rate [rad/s]
+FRACTION_LABELS = ("done_frac", "carrying", "soc")
+
+
+def bounds_by_unit(labels: tuple[str, ...], max_distance_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Physically meaningful bounds (low, high) of each observation element, from its name's unit suffix:
+    distances (``_m``) within ``max_distance_m``, speeds (``_m_s``) within :data:`MAX_OBS_SPEED_M_S`, rates
+    (``_rad_s``) within :data:`MAX_OBS_RATE_RAD_S`, fractions and flags (:data:`FRACTION_LABELS`) in
+    [0, 1], anything else (quaternion parts, cos and sin, actions) in [-1, 1]."""
+    low, high = [], []
+    for label in labels:
+        if label.endswith("_rad_s"):
+            lim = (-MAX_OBS_RATE_RAD_S, MAX_OBS_RATE_RAD_S)
+        elif label.endswith("_m_s"):
+            lim = (-MAX_OBS_SPEED_M_S, MAX_OBS_SPEED_M_S)
+        elif label.endswith("_m"):
+            lim = (-max_distance_m, max_distance_m)
+        elif label in FRACTION_LABELS:
+            lim = (0.0, 1.0)
+        else:
+            lim = (-1.0, 1.0)
+        low.append(lim[0])
+        high.append(lim[1])
+    return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
+
+
 def check_parts(parts: Any) -> tuple[str, ...]:
     """The observation parts asked for, checked: a tuple from :data:`OBSERVATION_PARTS` holding ``state``."""
     if isinstance(parts, str):
@@ -162,5 +189,5 @@ def read_part(sim: Any, vehicle: str, part: str, setup: SensorSetup, origin_enu_
     return np.minimum(np.where(np.isfinite(depth), depth, setup.depth_range_m), setup.depth_range_m)
 
 
-__all__ = ["OBSERVATION_PARTS", "SENSOR_PARTS", "SensorSetup", "check_parts", "lidar_sectors", "part_bounds",
+__all__ = ["FRACTION_LABELS", "MAX_OBS_RATE_RAD_S", "MAX_OBS_SPEED_M_S", "OBSERVATION_PARTS", "bounds_by_unit", "SENSOR_PARTS", "SensorSetup", "check_parts", "lidar_sectors", "part_bounds",
            "read_part", "sensor_components"]
