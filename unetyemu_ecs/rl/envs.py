@@ -162,6 +162,13 @@ def _take(obs: Any, i: int) -> Any:
     return {k: v[i] for k, v in obs.items()} if isinstance(obs, dict) else obs[i]
 
 
+def copy_info(info: dict[str, Any], i: int) -> dict[str, Any]:
+    """Copy ``i``'s figures of a batch's info (name -> (N,) array) as plain Python values, without the
+    vector API's own keys (``final_obs``, ``final_info`` and the ``_`` masks)."""
+    return {k: (v[i].item() if isinstance(v[i], np.generic) else v[i]) for k, v in info.items()
+            if not k.startswith("_") and k not in ("final_obs", "final_info")}
+
+
 class DroneEnv(gym.Env):
     """One drone and its task (``hover``, ``waypoints``, ``delivery``; see :mod:`.tasks`).
 
@@ -220,8 +227,8 @@ class DroneEnv(gym.Env):
             raise RuntimeError("step() after the episode ended: call reset() first")
         reward, terminated, truncated, info = self._copies.step(action)
         self._done = bool(terminated[0] or truncated[0])
-        infos = {k: (v[0].item() if isinstance(v[0], np.generic) else v[0]) for k, v in info.items()}
-        return _take(self._copies.observe(), 0), float(reward[0]), bool(terminated[0]), bool(truncated[0]), infos
+        return (_take(self._copies.observe(), 0), float(reward[0]), bool(terminated[0]), bool(truncated[0]),
+                copy_info(info, 0))
 
     def render(self) -> np.ndarray | None:
         return self._copies.render(0) if self.render_mode == "rgb_array" else None
@@ -284,7 +291,7 @@ class DroneVectorEnv(VectorEnv):
             final_info = np.empty(self.num_envs, dtype=object)
             for i in ended.tolist():
                 final_obs[i] = _take(final, i)
-                final_info[i] = {k: v[i] for k, v in info.items()}
+                final_info[i] = copy_info(info, i)
             self._copies.reset_some(ended, self.np_random)
             infos.update({"final_obs": final_obs, "_final_obs": mask, "final_info": final_info, "_final_info": mask})
         return self._copies.observe(), reward, terminated, truncated, infos
@@ -317,5 +324,5 @@ def _task_vector_env(task: str) -> type:
 HoverEnv, WaypointsEnv, DeliveryEnv = (_task_env(t) for t in ("hover", "waypoints", "delivery"))
 HoverVectorEnv, WaypointsVectorEnv, DeliveryVectorEnv = (_task_vector_env(t) for t in ("hover", "waypoints", "delivery"))
 
-__all__ = ["DeliveryEnv", "DeliveryVectorEnv", "DroneEnv", "DroneVectorEnv", "HoverEnv", "HoverVectorEnv",
+__all__ = ["DeliveryEnv", "copy_info", "DeliveryVectorEnv", "DroneEnv", "DroneVectorEnv", "HoverEnv", "HoverVectorEnv",
            "RENDER_SIZE", "WaypointsEnv", "WaypointsVectorEnv"]

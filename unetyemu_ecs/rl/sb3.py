@@ -29,7 +29,7 @@ import numpy as np
 from stable_baselines3.common.vec_env import VecMonitor
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvStepReturn
 
-from .envs import DroneVectorEnv
+from .envs import DroneVectorEnv, copy_info
 
 
 class SB3VecEnv(VecEnv):
@@ -72,11 +72,9 @@ class SB3VecEnv(VecEnv):
         actions, self._actions = self._actions, None
         obs, reward, terminated, truncated, info = self.env.step(actions)
         dones = np.logical_or(terminated, truncated)
-        per_copy = {k: v for k, v in info.items()
-                    if not k.startswith("_") and k not in ("final_obs", "final_info")}
         infos: list[dict[str, Any]] = []
         for i in range(self.num_envs):
-            item = {k: (v[i].item() if isinstance(v[i], np.generic) else v[i]) for k, v in per_copy.items()}
+            item = copy_info(info, i)
             if dones[i]:
                 item["terminal_observation"] = info["final_obs"][i]
                 item["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
