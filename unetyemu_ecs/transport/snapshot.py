@@ -235,5 +235,23 @@ def run_consumer(queue: SnapshotQueue, handle: Callable[[Snapshot], None], stop:
             idle()
 
 
+def start_consumer(queue: SnapshotQueue, handle: Callable[[Snapshot], None], stop: threading.Event,
+                   idle: Callable[[], None] | None, name: str) -> threading.Thread:
+    """Start a transport's own daemon thread running :func:`run_consumer`; the thread."""
+    thread = threading.Thread(target=run_consumer, args=(queue, handle, stop, idle), name=name, daemon=True)
+    thread.start()
+    return thread
+
+
+def stop_consumer(queue: SnapshotQueue, stop: threading.Event, thread: threading.Thread | None,
+                  timeout_s: float) -> None:
+    """Ask a :func:`start_consumer` thread to end (it may be waiting on ``queue``) and wait at most
+    ``timeout_s`` seconds of wall time for it."""
+    stop.set()
+    queue.wake()
+    if thread is not None:
+        thread.join(timeout_s)
+
+
 __all__ = ["IDLE_STATUS", "SNAPSHOT_ARRAYS", "SnapshotBuilder", "SnapshotQueue", "TransportSnapshotSystem",
-           "run_consumer"]
+           "run_consumer", "start_consumer", "stop_consumer"]

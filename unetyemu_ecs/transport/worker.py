@@ -39,7 +39,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from .api import CommandPort, Snapshot, TransportError, TransportOptions
-from .snapshot import SnapshotQueue, run_consumer
+from .snapshot import SnapshotQueue, start_consumer, stop_consumer
 
 SEND_QUEUE_DEPTH = 64          # snapshots waiting to be sent (default; a recorder asks for as many as it keeps)
 # when the queue is empty, the send thread waits this long [s, wall] before taking the next snapshots, so that
@@ -137,10 +137,8 @@ class ProcessTransport:
         if reply[0] == "error":
             raise TransportError(reply[1])
         self.info = dict(reply[1])
-        self._thread = threading.Thread(target=run_consumer,
-                                        args=(self._queue, self._send_snapshot, self._stop, self._gather),
-                                        name=f"unetyemu-{self.name}-send", daemon=True)
-        self._thread.start()
+        self._thread = start_consumer(self._queue, self._send_snapshot, self._stop, self._gather,
+                                      f"unetyemu-{self.name}-send")
 
     def offer(self, snapshot: Snapshot) -> None:
         self._queue.put(snapshot)
@@ -162,11 +160,8 @@ class ProcessTransport:
         return bool(reply is not None and reply[2])        # ("flushed", n, ok, counters)
 
     def stop(self, timeout_s: float = 2.0) -> None:
-        self._stop.set()
-        self._queue.wake()
-        if self._thread is not None:
-            self._thread.join(timeout_s)
-            self._thread = None
+        stop_consumer(self._queue, self._stop, self._thread, timeout_s)
+        self._thread = None
         proc, self._proc = self._proc, None
         if proc is None:
             return

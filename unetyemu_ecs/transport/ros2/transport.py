@@ -29,7 +29,7 @@ from collections.abc import Callable
 from typing import Any
 
 from ..api import CommandPort, Snapshot, TransportError, TransportOptions
-from ..snapshot import SnapshotQueue, run_consumer
+from ..snapshot import SnapshotQueue, start_consumer, stop_consumer
 from .inbound import COMMAND_TOPICS, SOURCE, CommandContext, to_command
 
 QUEUE_DEPTH = 64            # snapshots: a quarter second at 240 Hz
@@ -74,10 +74,8 @@ class Ros2Transport:
         self._port = port
         self.bridge = self._open_bridge()
         self._queue.put(first)
-        self._thread = threading.Thread(target=run_consumer,
-                                        args=(self._queue, self._publish_snapshot, self._stop, self._idle),
-                                        name=f"unetyemu-{self.name}-publish", daemon=True)
-        self._thread.start()
+        self._thread = start_consumer(self._queue, self._publish_snapshot, self._stop, self._idle,
+                                      f"unetyemu-{self.name}-publish")
 
     def _open_bridge(self) -> Any:
         """What the publishes go to: the backend's ROS 2 node (which also delivers the command topics)."""
@@ -103,11 +101,8 @@ class Ros2Transport:
         return self._queue.wait_done(timeout_s)
 
     def stop(self, timeout_s: float = 2.0) -> None:
-        self._stop.set()
-        self._queue.wake()
-        if self._thread is not None:
-            self._thread.join(timeout_s)
-            self._thread = None
+        stop_consumer(self._queue, self._stop, self._thread, timeout_s)
+        self._thread = None
         if self.bridge is not None:
             bridge, self.bridge = self.bridge, None
             bridge.close()
