@@ -104,22 +104,45 @@ class PackStep(NamedTuple):
 def cell_ocv_v(soc_frac: np.ndarray) -> np.ndarray:
     """Open-circuit voltage of one cell [V] at ``soc_frac`` (any shape, clipped to [0, 1]); Chen 2006."""
     s = np.minimum(np.maximum(soc_frac, 0.0), 1.0)
-    c0, c1, c2, c3 = _OCV_POLY_V
-    return _OCV_EXP_V * np.exp(_OCV_EXP_RATE * s) + c0 + s * (c1 + s * (c2 + s * c3))
+    return _ocv_of_clipped_v(s, np.exp(_OCV_EXP_RATE * s))
 
 
 def _cell_ocv_integral_v(soc_frac: np.ndarray) -> np.ndarray:
     """``int_0^soc OCV(s) ds`` [V] (times capacity in Ah: open-circuit energy in Wh)."""
     s = np.minimum(np.maximum(soc_frac, 0.0), 1.0)
+    return _ocv_integral_of_clipped_v(s, np.exp(_OCV_EXP_RATE * s))
+
+
+def cell_ocv_and_integral_v(soc_frac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`cell_ocv_v` and ``int_0^soc OCV(s) ds`` [V] at ``soc_frac`` at once (one exponential for both)."""
+    s = np.minimum(np.maximum(soc_frac, 0.0), 1.0)
+    exp_term = np.exp(_OCV_EXP_RATE * s)
+    return _ocv_of_clipped_v(s, exp_term), _ocv_integral_of_clipped_v(s, exp_term)
+
+
+def _ocv_of_clipped_v(s: np.ndarray, exp_term: np.ndarray) -> np.ndarray:
+    """OCV [V] at the clipped SOC ``s`` given ``exp_term = e^(-35 s)``."""
     c0, c1, c2, c3 = _OCV_POLY_V
-    exp_part = _OCV_EXP_V / _OCV_EXP_RATE * (np.exp(_OCV_EXP_RATE * s) - 1.0)
+    return _OCV_EXP_V * exp_term + c0 + s * (c1 + s * (c2 + s * c3))
+
+
+def _ocv_integral_of_clipped_v(s: np.ndarray, exp_term: np.ndarray) -> np.ndarray:
+    """``int_0^s OCV`` [V] at the clipped SOC ``s`` given ``exp_term = e^(-35 s)``."""
+    c0, c1, c2, c3 = _OCV_POLY_V
+    exp_part = _OCV_EXP_V / _OCV_EXP_RATE * (exp_term - 1.0)
     return exp_part + s * (c0 + s * (c1 / 2 + s * (c2 / 3 + s * c3 / 4)))
 
 
 def pack_terminal_v(soc_frac: np.ndarray, v_rc_v: np.ndarray, current_a: np.ndarray, r0_pack_ohm: np.ndarray,
                     cells_series: np.ndarray) -> np.ndarray:
     """Terminal voltage ``V = cells OCV(SOC) - v_rc - I R0`` [V], (M,); + current = discharge."""
-    return cells_series * cell_ocv_v(soc_frac) - v_rc_v - current_a * r0_pack_ohm
+    return terminal_from_ocv_v(cells_series * cell_ocv_v(soc_frac), v_rc_v, current_a, r0_pack_ohm)
+
+
+def terminal_from_ocv_v(ocv_pack_v: np.ndarray, v_rc_v: np.ndarray, current_a: np.ndarray,
+                        r0_pack_ohm: np.ndarray) -> np.ndarray:
+    """Terminal voltage ``V = OCV_pack - v_rc - I R0`` [V] from the pack's open-circuit voltage; + current = discharge."""
+    return ocv_pack_v - v_rc_v - current_a * r0_pack_ohm
 
 
 def pack_current_for_power_a(power_w: np.ndarray, ocv_pack_v: np.ndarray, v_rc_v: np.ndarray,
@@ -135,6 +158,8 @@ def pack_current_for_power_a(power_w: np.ndarray, ocv_pack_v: np.ndarray, v_rc_v
     disc_v2 = e_v * e_v - 4.0 * r0_pack_ohm * power_w
     limited = disc_v2 < 0.0
     current = 2.0 * power_w / (e_v + np.sqrt(np.maximum(disc_v2, 0.0)))
+    if isinstance(limited, np.ndarray) and not limited.any():     # no pack at its limit: the root as it is
+        return current, limited
     at_max = e_v / (2.0 * np.where(limited, r0_pack_ohm, 1.0))
     return np.where(limited, at_max, current), limited
 
@@ -148,12 +173,28 @@ def step_pack(soc_frac: np.ndarray, v_rc_v: np.ndarray, current_a: np.ndarray, d
     exact solution of ``dv/dt = -v / (R1 C1) + I / C1``: ``v' = v e^(-dt/tau) + I R1 (1 - e^(-dt/tau))``.
     Parameters are (M,) arrays or scalars; the terminal voltage is taken at the end of the step.
     """
-    soc = np.minimum(np.maximum(soc_frac - current_a * dt_s / (3600.0 * capacity_eff_ah), 0.0), 1.0)
-    decay = np.exp(-dt_s / tau1_s)
-    v_rc = v_rc_v * decay + current_a * r1_pack_ohm * (1.0 - decay)
+    decay, rise = rc_decay(dt_s, tau1_s)
+    soc, v_rc = advance_pack(soc_frac, v_rc_v, current_a, dt_s, 3600.0 * capacity_eff_ah, decay, rise, r1_pack_ohm)
     terminal = pack_terminal_v(soc, v_rc, current_a, r0_pack_ohm, cells_series)
     current = current_a if np.shape(current_a) == soc.shape else np.broadcast_to(current_a, soc.shape)
     return PackStep(soc, v_rc, terminal, np.asarray(current, dtype=float))
+
+
+def rc_decay(dt_s: float, tau1_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The RC pair's decay ``e^(-dt/tau)`` over a step of ``dt_s`` and its complement ``1 - e^(-dt/tau)``."""
+    decay = np.exp(-dt_s / tau1_s)
+    return decay, 1.0 - decay
+
+
+def advance_pack(soc_frac: np.ndarray, v_rc_v: np.ndarray, current_a: np.ndarray, dt_s: float,
+                 capacity_eff_as: np.ndarray, decay: np.ndarray, rise: np.ndarray,
+                 r1_pack_ohm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """SOC and RC-pair voltage [V] after ``dt_s`` holding ``current_a``: :func:`step_pack` without the terminal
+    voltage, with the effective capacity in ampere-seconds ``capacity_eff_as = 3600 capacity_eff_ah`` and the
+    RC pair's ``decay, rise`` of :func:`rc_decay` given (constants a caller can keep between steps)."""
+    soc = np.minimum(np.maximum(soc_frac - current_a * dt_s / capacity_eff_as, 0.0), 1.0)
+    v_rc = v_rc_v * decay + current_a * r1_pack_ohm * rise
+    return soc, v_rc
 
 
 def pack_cut_off(terminal_v: np.ndarray, soc_frac: np.ndarray, cells_series: np.ndarray,

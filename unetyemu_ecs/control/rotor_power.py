@@ -46,7 +46,12 @@ _NEGLIGIBLE_DESCENT_FRAC = 1e-4    # a descent slower than this x v_h changes v_
 def hover_induced_velocity_m_s(thrust_n: np.ndarray, air_density_kg_m3: np.ndarray,
                                disk_area_m2: np.ndarray) -> np.ndarray:
     """``v_h = sqrt(T / (2 rho A))`` [m/s] (negative thrust counts as zero)."""
-    return np.sqrt(np.maximum(thrust_n, 0.0) / (2.0 * air_density_kg_m3 * disk_area_m2))
+    return hover_induced_velocity_of_loading_m_s(np.maximum(thrust_n, 0.0), 2.0 * air_density_kg_m3 * disk_area_m2)
+
+
+def hover_induced_velocity_of_loading_m_s(thrust_pos_n: np.ndarray, two_rho_area_kg_m: np.ndarray) -> np.ndarray:
+    """``v_h = sqrt(T / (2 rho A))`` [m/s] of a thrust ``T >= 0`` with ``2 rho A`` given (a constant of the rotor)."""
+    return np.sqrt(thrust_pos_n / two_rho_area_kg_m)
 
 
 def glauert_inflow_m_s(v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray, v_h_m_s: np.ndarray,
@@ -147,8 +152,16 @@ def induced_velocity_m_s(thrust_n: np.ndarray, v_axial_m_s: np.ndarray, v_inplan
 def shaft_power_from_inflow_w(thrust_n: np.ndarray, inflow_m_s: np.ndarray, v_inplane_m_s: np.ndarray,
                               profile_hover_w: np.ndarray, tip_speed_m_s: np.ndarray) -> np.ndarray:
     """``T u + P_0h 4.65 (V_h / V_tip)^2`` [W]: induced and climb power plus the profile power's growth."""
+    return shaft_power_of_positive_thrust_w(np.maximum(thrust_n, 0.0), inflow_m_s, v_inplane_m_s,
+                                            profile_hover_w * PROFILE_MU2_FACTOR, tip_speed_m_s)
+
+
+def shaft_power_of_positive_thrust_w(thrust_pos_n: np.ndarray, inflow_m_s: np.ndarray, v_inplane_m_s: np.ndarray,
+                                     profile_mu2_w: np.ndarray, tip_speed_m_s: np.ndarray) -> np.ndarray:
+    """:func:`shaft_power_from_inflow_w` [W] of a thrust ``T >= 0`` with ``profile_mu2_w = P_0h 4.65`` given (a
+    constant of the rotor): ``T u + profile_mu2_w (V_h / V_tip)^2``."""
     mu = np.asarray(v_inplane_m_s) / tip_speed_m_s
-    return np.maximum(thrust_n, 0.0) * inflow_m_s + profile_hover_w * PROFILE_MU2_FACTOR * mu * mu
+    return thrust_pos_n * inflow_m_s + profile_mu2_w * mu * mu
 
 
 def rotor_shaft_power_w(thrust_n: np.ndarray, v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray,

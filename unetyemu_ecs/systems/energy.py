@@ -24,11 +24,13 @@ import esper
 import numpy as np
 
 from ..components.flight import LIPO_CELL_NOMINAL_V, EnergyModel, QuadrotorMotors
-from ..control.battery_ecm import cell_ocv_v, energy_remaining_wh, pack_current_for_power_a, step_pack
+from ..control.battery_ecm import (advance_pack, cell_ocv_and_integral_v, cell_ocv_v, energy_remaining_wh,
+                                   pack_current_for_power_a, rc_decay, terminal_from_ocv_v)
 from ..control.energy import rotor_power_w
 from ..control.mixer import motor_positions_flu_m
-from ..control.rotor_power import (glauert_inflow_m_s, hover_induced_velocity_m_s, profile_hover_power_w,
-                                   shaft_power_from_inflow_w, vortex_ring_correction_m_s)
+from ..control.rotor_power import (PROFILE_MU2_FACTOR, glauert_inflow_m_s, hover_induced_velocity_of_loading_m_s,
+                                   profile_hover_power_w, shaft_power_of_positive_thrust_w,
+                                   vortex_ring_correction_m_s)
 from ..phases import Phase
 from ..world import StepContext
 from .fleet_system import FleetSystem
@@ -71,7 +73,9 @@ class EnergySystem(FleetSystem):
         self._p0 = col("p0_w")
         self._low = col("low_battery_land_frac")
         self._tau = col("remaining_time_tau_s")
-        self._filter_dt_s, self._filter_gain = math.nan, np.zeros_like(self._tau)   # the filter's gain per step
+        # per-step constants of dt (set on the first step and whenever dt changes): the filter's gain, the RC pair's
+        # decay and rise (:func:`..control.battery_ecm.rc_decay`)
+        self._filter_dt_s, self._filter_gain = math.nan, np.zeros_like(self._tau)
         # power model
         self._momentum = np.array([c.model == "momentum" for c in comps])
         self._any_momentum, self._all_momentum = bool(self._momentum.any()), bool(self._momentum.all())
@@ -86,6 +90,8 @@ class EnergySystem(FleetSystem):
         # a rotor's axial velocity from the body rates, (w x r)_z = w_x r_y - w_y r_x: [w_x, w_y] @ this
         self._axial_per_rate = np.stack([pos[:, :, 1], -pos[:, :, 0]], axis=1)     # (M, 2, 4) [m]
         self._rho_col, self._area_col, self._eta_col = self._rho[:, None], self._area[:, None], self._eta[:, None]
+        self._two_rho_area_col = 2.0 * self._rho_col * self._area_col                    # (M, 1) [kg/m]
+        self._profile_mu2_w = self._profile_hover_w * PROFILE_MU2_FACTOR                # (M, 1) [W]
         # battery
         self._lipo = np.array([c.battery == "lipo" for c in comps])
         self._any_lipo, self._all_lipo = bool(self._lipo.any()), bool(self._lipo.all())
@@ -94,6 +100,12 @@ class EnergySystem(FleetSystem):
         self._r0 = self._cells * col("cell_r0_ohm")
         self._r1 = self._cells * col("cell_r1_ohm")
         self._rc_tau = col("rc_tau_s")
+        self._rc_decay, self._rc_rise = rc_decay(1.0, self._rc_tau)     # replaced on the first step (dt unknown here)
+        self._capacity_eff_as = 3600.0 * self._capacity_eff_ah
+        self._cells_capacity_ah = self._cells * self._capacity_eff_ah     # energy_remaining_wh's cells x capacity
+        # the pack OCV [V] the last step left at the SOC it left (None: none yet, or the rows changed)
+        self._ocv_soc_frac: np.ndarray | None = None
+        self._ocv_pack_v = np.zeros_like(self._cells)
         self._cutoff_v = self._cells * col("cell_cutoff_v")
         self._ideal_cap_j = col("battery_wh") * J_PER_WH
         self._ideal_v = self._cells * LIPO_CELL_NOMINAL_V
@@ -133,11 +145,10 @@ class EnergySystem(FleetSystem):
         """Electrical power [W] of drones ``rows`` (parameters ``k``): rotors over eta, plus P0."""
         # the power of the thrust out of ground effect: near the ground the same power lifts more
         thrust = f.motor_thrust_n[rows] / f.ground_effect_factor[rows]
-        rho, area, eta = self._rho[k], self._area[k], self._eta[k]
         if self._all_momentum:
             rotors = self._momentum_power_w(f, rows, k, thrust)
         else:
-            rotors = rotor_power_w(thrust, rho, area, eta)
+            rotors = rotor_power_w(thrust, self._rho[k], self._area[k], self._eta[k])
             if self._any_momentum:
                 rotors = np.where(self._momentum[k][:, None], self._momentum_power_w(f, rows, k, thrust), rotors)
         return rotors.sum(axis=1) + self._p0[k]
@@ -153,12 +164,20 @@ class EnergySystem(FleetSystem):
         v_flu = (v_rel_enu[:, None, :] @ f.R_enu_flu[rows])[:, 0, :]                 # R^T v: body FLU
         v_axial = v_flu[:, 2:3] + (f.rate_flu_rad_s[rows][:, None, :2] @ self._axial_per_rate[k])[:, 0, :]
         v_inplane = np.sqrt(v_flu[:, 0:1] * v_flu[:, 0:1] + v_flu[:, 1:2] * v_flu[:, 1:2])    # (M, 1)
-        v_h = hover_induced_velocity_m_s(thrust, self._rho_col[k], self._area_col[k])
+        thrust_pos = np.maximum(thrust, 0.0)                                         # negative thrust counts as zero
+        v_h = hover_induced_velocity_of_loading_m_s(thrust_pos, self._two_rho_area_col[k])
         root = glauert_inflow_m_s(v_axial, v_inplane, v_h, guess_m_s=f.glauert_inflow_m_s[rows])
         f.glauert_inflow_m_s[rows] = root
         inflow = root + vortex_ring_correction_m_s(v_axial, v_inplane, v_h)
-        shaft = shaft_power_from_inflow_w(thrust, inflow, v_inplane, self._profile_hover_w[k], self._tip_speed[k])
+        shaft = shaft_power_of_positive_thrust_w(thrust_pos, inflow, v_inplane, self._profile_mu2_w[k],
+                                                 self._tip_speed[k])
         return np.maximum(shaft, 0.0) / self._eta_col[k]          # the ESCs do not regenerate
+
+    def _pack_ocv_v(self, soc: np.ndarray) -> np.ndarray:
+        """``cells OCV(soc)`` [V]: the value the last step computed while the SOC is still the one it left."""
+        if self._ocv_soc_frac is not None and (soc == self._ocv_soc_frac).all():
+            return self._ocv_pack_v
+        return self._cells * cell_ocv_v(soc)
 
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
@@ -168,36 +187,43 @@ class EnergySystem(FleetSystem):
         f.power_w[r] = power
         if dt != self._filter_dt_s:
             self._filter_dt_s, self._filter_gain = dt, 1.0 - np.exp(-dt / self._tau)
+            self._rc_decay, self._rc_rise = rc_decay(dt, self._rc_tau)
         f.power_filt_w[r] += self._filter_gain * (power - f.power_filt_w[r])
         charging = f.charging[r]
         net_w = power - np.where(charging, f.charge_power_w[r], 0.0) if charging.any() else power
         soc = f.soc_frac[r]
-        cut = np.zeros(soc.shape, dtype=bool)
-        if self._any_lipo:
-            ocv = self._cells * cell_ocv_v(soc)
-            current, _limited = pack_current_for_power_a(net_w, ocv, f.pack_v_rc_v[r], self._r0)
-            pack = step_pack(soc, f.pack_v_rc_v[r], current, dt, self._capacity_eff_ah, self._r0, self._r1,
-                             self._rc_tau, self._cells)
-            lipo_soc, volts = pack.soc_frac, pack.terminal_v
-            cut = self._lipo & ((volts < self._cutoff_v) | (lipo_soc <= 0.0))
-            f.pack_v_rc_v[r] = pack.v_rc_v
+        if self._any_lipo:         # step_pack, its OCV at the new SOC shared with the energy left and the next step
+            v_rc = f.pack_v_rc_v[r]
+            current, _limited = pack_current_for_power_a(net_w, self._pack_ocv_v(soc), v_rc, self._r0)
+            lipo_soc, v_rc = advance_pack(soc, v_rc, current, dt, self._capacity_eff_as, self._rc_decay,
+                                          self._rc_rise, self._r1)
+            cell_ocv, cell_ocv_integral = cell_ocv_and_integral_v(lipo_soc)
+            pack_ocv = self._cells * cell_ocv
+            volts = terminal_from_ocv_v(pack_ocv, v_rc, current, self._r0)
+            self._ocv_soc_frac, self._ocv_pack_v = lipo_soc, pack_ocv
+            cut = (volts < self._cutoff_v) | (lipo_soc <= 0.0)
+            if not self._all_lipo:
+                cut &= self._lipo
+            f.pack_v_rc_v[r] = v_rc
         if not self._all_lipo:
             ideal_energy = np.minimum(np.maximum(soc * self._ideal_cap_j - net_w * dt, 0.0), self._ideal_cap_j)
             ideal_soc = ideal_energy / self._ideal_cap_j
             ideal_current = net_w / self._ideal_v
         if self._all_lipo:
             soc, f.pack_current_a[r], f.pack_voltage_v[r] = lipo_soc, current, volts
-        elif not self._any_lipo:
-            soc, f.pack_current_a[r], f.pack_voltage_v[r] = ideal_soc, ideal_current, self._ideal_v
-            cut = ideal_soc <= 0.0
+            energy = self._cells_capacity_ah * cell_ocv_integral * J_PER_WH    # energy_remaining_wh at lipo_soc
         else:
-            lipo = self._lipo
-            soc = np.where(lipo, lipo_soc, ideal_soc)
-            f.pack_current_a[r] = np.where(lipo, current, ideal_current)
-            f.pack_voltage_v[r] = np.where(lipo, volts, self._ideal_v)
-            cut |= ~lipo & (ideal_soc <= 0.0)
+            if not self._any_lipo:
+                soc, f.pack_current_a[r], f.pack_voltage_v[r] = ideal_soc, ideal_current, self._ideal_v
+                cut = ideal_soc <= 0.0
+            else:
+                lipo = self._lipo
+                soc = np.where(lipo, lipo_soc, ideal_soc)
+                f.pack_current_a[r] = np.where(lipo, current, ideal_current)
+                f.pack_voltage_v[r] = np.where(lipo, volts, self._ideal_v)
+                cut |= ~lipo & (ideal_soc <= 0.0)
+            energy = self._energy_j(soc, slice(None))
         f.soc_frac[r] = soc
-        energy = self._energy_j(soc, slice(None))
         f.energy_j[r] = energy
         f.energy_used_j[r] += power * dt
         f.remaining_time_s[r] = energy / np.maximum(f.power_filt_w[r], 1e-9)
