@@ -184,6 +184,8 @@ class Simulation(NavigationApi):
         leaves them as they are). The sensors' products are small: with more threads BLAS spins on the
         other cores, and on a 2-core machine running the transports beside it that cost 44 % more CPU
         time for the same frames. The previous limit comes back at :meth:`close`.
+    raycast_threads : threads each LiDAR and camera ray cast (Open3D) may use; 0 (default): every core.
+        1 keeps a simulation on one core, as ``unetyemu sweep`` runs it beside others.
 
     Transports (ROS 2, MAVLink, and those of other packages: entry-point group
     ``unetyemu_ecs.transports``) are created from these options and started with the world; one
@@ -195,11 +197,15 @@ class Simulation(NavigationApi):
                  ros2: str = "off", mavlink: bool = False, mavlink_bind: str = "127.0.0.1",
                  record: str | Path | None = None, record_topics: list[str] | tuple[str, ...] | None = None,
                  foxglove: int | None = None, view: int | None = None,
-                 blas_threads: int | None = 1) -> None:
+                 blas_threads: int | None = 1, raycast_threads: int = 0) -> None:
         spec = world.spec.world
         self.definition = world
         self._blas_limit: Any = None
         _check_blas_threads(blas_threads)
+        if isinstance(raycast_threads, bool) or not isinstance(raycast_threads, int) \
+                or not 0 <= raycast_threads <= MAX_BLAS_THREADS:
+            raise ValueError(f"raycast_threads must be an integer in [0, {MAX_BLAS_THREADS}] (0: every core), "
+                             f"got {raycast_threads!r}")
         self.ros2 = ros2
         self.ros2_backend = resolve_backend(ros2)        # "off", "rclpy" or "dds"
         self._options = TransportOptions(self.ros2_backend, _check_mavlink(mavlink), _check_bind(mavlink_bind),
@@ -231,7 +237,7 @@ class Simulation(NavigationApi):
         self.services = SimServices(world.layout, self.inbox, self._entities, [],
                                     gravity_enu_m_s2=tuple(spec.gravity_m_s2),
                                     origin=GeodeticOrigin(spec.origin.lat_deg, spec.origin.lon_deg, spec.origin.alt_m),
-                                    air_density_kg_m3=spec.air_density_kg_m3())
+                                    air_density_kg_m3=spec.air_density_kg_m3(), raycast_threads=raycast_threads)
         self.ecs = EcsWorld(label=world.name)
         self.physics: PhysicsClient | None = None
         self._blas_limit = _limit_blas_threads(blas_threads)

@@ -1,4 +1,4 @@
-"""``unetyemu`` command line: run, validate, plugins, plot, teleop, view.
+"""``unetyemu`` command line: run, sweep, validate, plugins, plot, teleop, view.
 
 Exit codes: 0 success, 1 runtime failure, 2 bad input (arguments or world file), 130 interrupted.
 """
@@ -100,8 +100,39 @@ def _tcp_port(text: str) -> int:
 
 def _out_dir(text: str) -> Path:
     if not text.strip():
-        raise argparse.ArgumentTypeError("the output directory must not be empty (omit --out for runs/<world>-<time>)")
+        raise argparse.ArgumentTypeError("the output directory must not be empty (omit --out for the default)")
     return Path(text)
+
+
+def _count(text: str) -> int:
+    """A positive count (seeds, workers), at most 100 000."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if not 1 <= value <= 100_000:
+        raise argparse.ArgumentTypeError(f"must be from 1 to 100000, got {text!r}")
+    return value
+
+
+def _sweep_parameter(text: str) -> Any:
+    from .sweep.overrides import OverrideError, parse_set
+
+    try:
+        return parse_set(text)
+    except OverrideError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _ray_address(text: str) -> str:
+    import re
+
+    text = text.strip()
+    match = re.fullmatch(r"(ray://)?[A-Za-z0-9.\-\[\]:]+:(\d{1,5})", text)
+    if text == "auto" or (match and 1 <= int(match.group(2)) <= 65535):
+        return text
+    raise argparse.ArgumentTypeError(f"{text!r} is not a Ray address (ray://HOST:PORT, HOST:PORT with a port from 1 "
+                                     "to 65535, or auto)")
 
 
 def _version() -> str:
@@ -178,6 +209,46 @@ def build_parser() -> argparse.ArgumentParser:
                       help="the world file the recording was made from, for the city (default: the one named by "
                            "summary.json of the run the recording is in)")
 
+    sweep = sub.add_parser("sweep", help="run a world many times over parameter values and seeds, on Ray",
+                           description="Run the cartesian product of --set values x seeds, each an independent "
+                                       "simulation on one core of a local (default) or remote Ray cluster; write "
+                                       "each run's outputs, one table of their figures (CSV and printed) and a plot.")
+    sweep.add_argument("world", type=Path, help="world file (YAML), e.g. worlds/parcel_sweep.yaml")
+    sweep.add_argument("--set", dest="sets", action="append", default=[], type=_sweep_parameter,
+                       metavar="KEY.PATH=V1,V2,...",
+                       help="a world-file value to sweep: keys joined by dots, list items by name or index "
+                            "(packages.parcel.mass_kg=0.5,1.0 or vehicles.drone1.preset=small,medium,large); "
+                            "values are YAML; repeat for more parameters")
+    sweep.add_argument("--seeds", type=_count, default=1, metavar="N",
+                       help="seeds per parameter combination (default 1): the world's seed and the N-1 after it")
+    sweep.add_argument("--first-seed", type=_seed, default=None, metavar="S",
+                       help="the first seed (default: the world file's world.seed)")
+    sweep.add_argument("--workers", type=_count, default=None, metavar="K",
+                       help="runs at once, one core each (default: every core here, or every CPU of --address)")
+    sweep.add_argument("--address", type=_ray_address, default=None, metavar="ADDR",
+                       help="an existing Ray cluster (ray://HOST:10001, HOST:6379, or auto for `ray start` here); "
+                            "default: start a local one")
+    sweep.add_argument("--duration", type=_positive_seconds, default=None, metavar="S",
+                       help="simulated seconds per run (default: the world file's world.duration_s)")
+    sweep.add_argument("--timeout", type=_positive_seconds, default=None, metavar="S",
+                       help="wall-clock seconds a run may take; then it is stopped and reported (default: no limit)")
+    sweep.add_argument("--vehicle", type=_vehicle_name, default=None, metavar="NAME",
+                       help="table figures of this vehicle (default: totals of the world's vehicles)")
+    sweep.add_argument("--plot", default="energy_used_wh", metavar="FIGURE",
+                       help="the figure to plot (default energy_used_wh; any numeric column of the table)")
+    sweep.add_argument("--against", default=None, metavar="KEY.PATH",
+                       help="the parameter on the plot's x axis (default: the first --set)")
+    sweep.add_argument("--out", type=_out_dir, default=None, metavar="DIR",
+                       help="the sweep's directory, new or empty (default: sweeps/<world>-<date>-<time>)")
+    sweep.add_argument("--resume", action="store_true",
+                       help="finish the sweep in --out DIR: runs finished there are not run again")
+    sweep.add_argument("--ros2", choices=["off", "auto", "rclpy", "dds"], default="off",
+                       help="make every run a ROS 2 node (default off); each worker's runs on their own domain, "
+                            "ROS_DOMAIN_ID + worker")
+    sweep.add_argument("--mavlink", action="store_true",
+                       help="give every drone a MAVLink endpoint; each worker's runs on their own PX4 SITL instances")
+    sweep.add_argument("--quiet", action="store_true", help="no progress bar")
+
     plot = sub.add_parser("plot", help="write PNG plots of a run's drone logs")
     plot.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a directory written by `unetyemu run`")
     return parser
@@ -200,6 +271,8 @@ def main(argv: list[str] | None = None) -> int:
             return cmd_teleop(args)
         if args.command == "view":
             return cmd_view(args)
+        if args.command == "sweep":
+            return cmd_sweep(args)
         return cmd_plugins()
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
@@ -281,6 +354,13 @@ class _Progress:
             self.stream.flush()
 
 
+def _file_name(name: str) -> str:
+    """A world's name as one safe path component (a name like ``../x`` must not leave ``runs/``)."""
+    import re
+
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).lstrip(".") or "world"
+
+
 def _fresh_out_dir(args: argparse.Namespace, world_name: str) -> Path | str:
     """Where this run writes; a message (str) if ``--out`` names a directory that already holds files."""
     if args.out is not None:
@@ -291,9 +371,14 @@ def _fresh_out_dir(args: argparse.Namespace, world_name: str) -> Path | str:
             return (f"--out {out}: directory already holds files (an earlier run?); choose a new directory "
                     "or pass --overwrite")
         return out
-    base = Path("runs") / f"{world_name}-{time.strftime('%Y%m%d-%H%M%S')}"
+    return _default_out_dir("runs", world_name)
+
+
+def _default_out_dir(root: str, world_name: str) -> Path:
+    """``<root>/<world>-<date>-<time>``, with ``-2``, ``-3``... when one started in the same second exists."""
+    base = Path(root) / f"{_file_name(world_name)}-{time.strftime('%Y%m%d-%H%M%S')}"
     out, k = base, 1
-    while out.exists():                     # two runs started in the same second
+    while out.exists():
         k += 1
         out = base.with_name(f"{base.name}-{k}")
     return out
@@ -437,6 +522,64 @@ def cmd_view(args: argparse.Namespace) -> int:
         source.rec.close()
     print("view: stopped", file=sys.stderr)
     return EXIT_OK
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    """Run a sweep; exit 0 when every run finished, 1 when some failed or timed out, 2 for bad input
+    (nothing ran), 130 (or 128 + the signal) when stopped: finished runs are kept, --resume goes on."""
+    from .config.schema import ConfigError
+    from .sweep import OverrideError, SweepError, SweepOptions, build_plan, run_sweep
+    from .sweep.ray_runner import RayUnavailable
+    from .sweep.table import format_table
+
+    if args.resume and args.out is None:
+        print("error: --resume needs --out DIR (the sweep to finish)", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    try:
+        plan = build_plan(args.world, args.sets, seeds=args.seeds, first_seed=args.first_seed)
+    except ConfigError as exc:
+        print(f"error: invalid world file:\n{exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except (OverrideError, ValueError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    out = args.out if args.out is not None else _default_out_dir("sweeps", plan.world_name)
+    options = SweepOptions(workers=args.workers, address=args.address, duration_s=args.duration,
+                           timeout_s=args.timeout, vehicle=args.vehicle, plot=args.plot, against=args.against,
+                           ros2=args.ros2, mavlink=args.mavlink, resume=args.resume)
+    stop = _StopOnSignal()
+    with stop:
+        try:
+            result = run_sweep(plan, out, options, sys.stderr, should_stop=lambda: stop.signum is not None,
+                               quiet=args.quiet)
+        except SweepError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        except RayUnavailable as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return EXIT_FAILURE
+        except OSError as exc:              # the disk filled or went away under the sweep
+            print(f"error: cannot write the sweep's outputs in {out}: {exc}", file=sys.stderr)
+            return EXIT_FAILURE
+    print(format_table([p.key for p in plan.parameters], result.rows))
+    ok, failed, timeout = result.count("ok"), result.count("failed"), result.count("timeout")
+    print(f"{ok} of {len(plan.runs)} runs finished" + (f" ({result.skipped} in an earlier session)" if result.skipped
+                                                      else "")
+          + (f", {failed} failed" if failed else "") + (f", {timeout} timed out" if timeout else ""))
+    if result.ran:
+        print(f"this session: {result.ran} runs in {result.running_s:.1f} s ({result.runs_per_minute:.1f} runs/min) on "
+              f"{result.cluster}, after {result.cluster_start_s:.1f} s to start it")
+    for row in result.rows:
+        if row["status"] != "ok":
+            print(f"  {row['status']}: {row['run']}: {row['error']}")
+    print(f"table: {result.csv_path}")
+    if result.plot_path is not None:
+        print(f"plot: {result.plot_path}")
+    if result.unfinished:
+        print(f"stopped: {len(result.unfinished)} runs not finished; finish them with: unetyemu sweep "
+              f"{args.world} ... --out {out} --resume", file=sys.stderr)
+        return stop.exit_code or EXIT_INTERRUPTED
+    return EXIT_FAILURE if failed or timeout else EXIT_OK
 
 
 def cmd_plot(args: argparse.Namespace) -> int:

@@ -52,6 +52,7 @@ class SimServices:
     gravity_enu_m_s2 : the world's gravity vector
     origin : the world's geodetic origin (WGS84) of the ENU frame
     air_density_kg_m3 : the world's air density (ISA at the origin unless the world file overrides it)
+    raycast_threads : threads each LiDAR and camera ray cast may use (0: every core)
     """
 
     layout: SceneLayout
@@ -65,6 +66,7 @@ class SimServices:
     origin: GeodeticOrigin | None = None
     air_density_kg_m3: float = 1.225
     raycast: Any = None          # the RaycastWorld of LiDARs and cameras, built by the first that needs it
+    raycast_threads: int = 0     # threads of each ray cast (0: every core)
     camera_casts: dict[Any, Any] = field(default_factory=dict)   # this step's camera frames, shared (sensors.camera)
     _mesh: Any = None
 

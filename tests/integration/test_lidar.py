@@ -130,3 +130,16 @@ def test_the_drone_never_sees_itself_and_the_cloud_round_trips_through_cdr():
         assert back.header.frame_id == "d1/lidar_link"
         intensity = read_points(msg)["intensity"]
         assert np.all((intensity >= 0.0) & (intensity <= 1.0)) and intensity.max() > 0.1
+
+
+def test_a_lidar_cast_on_one_thread_sees_the_same_walls():
+    # a sweep runs each simulation on one core: Simulation(raycast_threads=1) casts on one thread
+    scans = []
+    for threads in (0, 1):
+        with Simulation(load_world_text(world(car("c1"))), raycast_threads=threads) as sim:
+            sim.run(duration=0.5)
+            assert sim.services.raycast.threads == threads
+            scans.append(xyz(sim.sensor("c1", "lidar")))
+    assert np.array_equal(scans[0], scans[1])
+    with pytest.raises(ValueError, match="raycast_threads must be an integer"):
+        Simulation(load_world_text(world(car("c1"))), raycast_threads=-1)

@@ -32,6 +32,10 @@ SHELL_BLOCKS_TESTED_BY = {
         "the replay command on a recording)",
     "unetyemu run worlds/mavlink_pair.yaml": "tests/integration/test_mavlink_clients.py (the world with both "
                                              "examples; the MAVSDK flight is a slow test)",
+    "unetyemu sweep worlds/parcel_sweep.yaml": "tests/integration/test_sweep.py (the worked example as written: a "
+                                              "slow test; smaller sweeps of the same world in the default run)",
+    "ray start --head": "tests/integration/test_sweep.py (a head from `ray start --head` on a free loopback port "
+                        "and a sweep given its --address; joining a second machine is not tested)",
 }
 
 

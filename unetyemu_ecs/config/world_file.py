@@ -289,7 +289,7 @@ def resolve_world(doc: Any, src: SourceMap, registry: Registry | None = None,
 
     layout = None
     try:
-        layout = build_layout(spec.scene, spec.world.seed)
+        layout = build_layout(spec.scene, spec.world.seed if spec.scene.seed is None else spec.scene.seed)
     except ValueError as exc:
         issues.append(src.issue(_path_in_message(str(exc), ("scene",)), str(exc)))
 

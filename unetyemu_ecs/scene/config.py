@@ -162,6 +162,9 @@ class SceneConfig:
 
     generator: Literal["urban", "none"] = "none"
     urban: UrbanParams = field(default_factory=UrbanParams)
+    # seeds the generated city; none: the world's seed. A fixed city seed keeps the streets and pads
+    # while world.seed (or a sweep's --seeds) varies the wind and the sensor noise
+    seed: Annotated[int, Ge(0), Le(2**63 - 1)] | None = None
     # ground edge when generator is "none": 1 m to the whole 40 km world (config.limits.MAX_XY_M)
     ground_size_m: Annotated[float, Ge(1.0), Le(2.0 * MAX_XY_M)] = 200.0
     buildings: Annotated[list[BuildingSpec], MaxLen(MAX_SCENE_OBJECTS)] = field(default_factory=list)

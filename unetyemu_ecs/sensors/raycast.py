@@ -194,9 +194,11 @@ class RayHits:
 class RaycastWorld:
     """The static scene mesh plus moving boxes, cast together (no esper: usable on its own)."""
 
-    def __init__(self, vertices_m: np.ndarray, triangles: np.ndarray, tri_cls: np.ndarray) -> None:
+    def __init__(self, vertices_m: np.ndarray, triangles: np.ndarray, tri_cls: np.ndarray, threads: int = 0) -> None:
+        """``threads``: how many threads each cast may use (0: every core, Open3D's default)."""
         o3d = import_open3d()
         self._o3d = o3d
+        self.threads = int(threads)
         self.static = o3d.t.geometry.RaycastingScene()
         self.static.add_triangles(o3d.core.Tensor(np.asarray(vertices_m, dtype=np.float32)),
                                   o3d.core.Tensor(np.asarray(triangles, dtype=np.uint32)))
@@ -224,7 +226,7 @@ class RaycastWorld:
         o3d = self._o3d
         m = len(rays)
         start_static = np.asarray(start_static_m, dtype=np.float32)
-        hit = self.static.cast_rays(o3d.core.Tensor.from_numpy(rays), nthreads=0)
+        hit = self.static.cast_rays(o3d.core.Tensor.from_numpy(rays), nthreads=self.threads)
         t = hit["t_hit"].numpy() + start_static
         normal = hit["primitive_normals"].numpy()
         cls = self._cls_of_prim[np.minimum(hit["primitive_ids"].numpy(), len(self._tri_cls))]   # NO_HIT: invalid id
@@ -237,7 +239,7 @@ class RaycastWorld:
             start = np.asarray(start_dynamic_m, dtype=np.float32)[idx]
             sub = rays[idx]
             sub[:, :3] += (start - start_static[idx])[:, None] * sub[:, 3:]
-            dhit = dyn.cast_rays(o3d.core.Tensor.from_numpy(sub), nthreads=0)
+            dhit = dyn.cast_rays(o3d.core.Tensor.from_numpy(sub), nthreads=self.threads)
             td = dhit["t_hit"].numpy() + start
             nearer = td < t[idx]
             k = idx[nearer]

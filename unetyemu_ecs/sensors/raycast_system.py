@@ -39,7 +39,7 @@ class RaycastSensorSystem(SensorSystemBase):
         self._plans = {}
         if ctx.services.raycast is None:
             mesh = ctx.services.scene_mesh()
-            ctx.services.raycast = RaycastWorld(mesh.vertices_m, mesh.triangles, mesh.cls)
+            ctx.services.raycast = RaycastWorld(mesh.vertices_m, mesh.triangles, mesh.cls, ctx.services.raycast_threads)
         self.world = ctx.services.raycast
         found = sorted((slot.row, body.half_extents_m)
                        for _, (slot, body) in esper.get_components(FleetSlot, RigidBody))

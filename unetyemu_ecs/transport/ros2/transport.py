@@ -46,6 +46,7 @@ class Ros2Transport:
 
     def __init__(self, world: Any, backend: str, queue_depth: int = QUEUE_DEPTH) -> None:
         self.backend = backend
+        self.domain_id: int | None = None
         vehicles = [e for e in world.entities if e.kind != "package"]
         self._kinds = {e.name: e.kind for e in vehicles if e.ros2}
         self._hidden = frozenset(e.name for e in vehicles if not e.ros2)
@@ -71,7 +72,10 @@ class Ros2Transport:
 
     # -- life cycle (simulation thread) --------------------------------------------------------
     def start(self, port: CommandPort, first: Snapshot) -> None:
+        from .dds_backend import domain_from_env
+
         self._port = port
+        self.domain_id = domain_from_env()      # what both backends join (ROS_DOMAIN_ID, default 0)
         self.bridge = self._open_bridge()
         self._queue.put(first)
         self._thread = start_consumer(self._queue, self._publish_snapshot, self._stop, self._idle,
@@ -113,7 +117,7 @@ class Ros2Transport:
         return list(self.bridge.topics) if self.bridge is not None else []
 
     def counters(self) -> dict[str, Any]:
-        return {"backend": self.backend, "snapshots_offered": self._queue.offered,
+        return {"backend": self.backend, "domain_id": self.domain_id, "snapshots_offered": self._queue.offered,
                 "snapshots_dropped": self._queue.dropped, "published": self.published,
                 "publish_errors": self.publish_errors, "commands_submitted": self.commands_submitted,
                 "samples_rejected": self.samples_rejected, "errors": dict(self._failed)}
