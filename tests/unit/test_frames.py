@@ -156,6 +156,23 @@ def test_R_from_quat_is_a_proper_rotation(rng):
     assert_allclose(np.linalg.det(R), 1.0, atol=ATOL_ROT)
 
 
+def test_R_from_quat_is_the_textbook_formula_bit_for_bit(rng):
+    # GIVEN random quaternions, exact axis rotations and a fleet shaped (2, K, 4)
+    q = np.concatenate([rng.normal(size=(500, 4)), [[0, 0, 0, 1], [1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0],
+                                                    [0.5, 0.5, 0.5, -0.5], [0, 0, 1e-9, 1]]])
+    for quats in (q, q[:500].reshape(2, 250, 4), q[3]):
+        # WHEN converted (the few-numpy-calls form)
+        R = F.R_from_quat_xyzw(quats)
+        # THEN every entry is 1 - 2 (yy + zz), 2 (xy - wz), ... evaluated as written, signs of zero included
+        u = F.quat_normalize_xyzw(quats)
+        x, y, z, w = u[..., 0], u[..., 1], u[..., 2], u[..., 3]
+        textbook = np.stack([1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y),
+                             2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x),
+                             2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)],
+                            axis=-1).reshape(R.shape)
+        assert np.array_equal(R, textbook) and np.array_equal(np.signbit(R), np.signbit(textbook))
+
+
 def test_single_quaternion_gives_single_matrix():
     # GIVEN one identity quaternion of shape (4,)  WHEN converted  THEN the result is (3, 3)
     R = F.R_from_quat_xyzw([0.0, 0.0, 0.0, 1.0])

@@ -43,6 +43,12 @@ from ..world import StepContext
 from .fleet_system import FleetSystem, read_only, stack_params, take_params
 from .flight_state import MODE_ATTITUDE, MODE_AUTO, MODE_DISARMED, MODE_MANUAL, MODE_VELOCITY
 
+# the fleet arrays of a law's typed inputs, in the order of their fields
+DRONE_STATE_ARRAYS = ("pos_enu_m", "vel_enu_m_s", "acc_enu_m_s2", "quat_enu_flu_xyzw", "rate_flu_rad_s")
+POSITION_SETPOINT_ARRAYS = ("pos_sp_enu_m", "vel_sp_enu_m_s", "speed_limit_m_s", "dist_to_go_m", "yaw_sp_rad",
+                            "yaw_rate_cmd_rad_s")
+ATTITUDE_SETPOINT_ARRAYS = ("vz_sp_m_s", "roll_sp_rad", "pitch_sp_rad", "yaw_rate_sp_rad_s")
+
 
 def box_inertia_flu_kg_m2(mass_kg: np.ndarray, half_extents_m: np.ndarray) -> np.ndarray:
     """Principal moments (N, 3) [kg m^2] of uniform boxes (what PyBullet gives a box body)."""
@@ -75,6 +81,18 @@ class ControllerSystem(FleetSystem):
             self._memory_names[name] = array_name
         if self.mode_array:
             self._mode_seen = getattr(f, self.mode_array)[self.rows].copy()
+        self._views: dict[type, Any] = {}
+
+    def fleet_view(self, ctx: StepContext, cls: type, names: tuple[str, ...], rows: slice | np.ndarray) -> Any:
+        """``cls(*arrays)`` of the read-only fleet arrays ``names`` at ``rows``. For all the rows as a slice it
+        is built once per gather: its arrays are views, which show the fleet's values of every step (the
+        fleet reallocates its arrays only when rows change, and then the system gathers again)."""
+        if isinstance(rows, slice) and rows is self.sel:
+            view = self._views.get(cls)
+            if view is None:
+                view = self._views[cls] = cls(*(read_only(getattr(ctx.fleet, n)[rows]) for n in names))
+            return view
+        return cls(*(read_only(getattr(ctx.fleet, n)[rows]) for n in names))
 
     def restart_on_entry(self, ctx: StepContext, mode: np.ndarray, engaged: np.ndarray) -> None:
         """Reset the memory of the rows that entered a mode this layer controls since the last step
@@ -139,9 +157,7 @@ class DroneControllerSystem(ControllerSystem):
 
     def state(self, ctx: StepContext, rows: slice | np.ndarray) -> DroneState:
         """The drones' state for a law: read-only (for a slice of rows, views of the fleet arrays)."""
-        f = ctx.fleet
-        return DroneState(*(read_only(a[rows]) for a in (f.pos_enu_m, f.vel_enu_m_s, f.acc_enu_m_s2,
-                                                          f.quat_enu_flu_xyzw, f.rate_flu_rad_s)))
+        return self.fleet_view(ctx, DroneState, DRONE_STATE_ARRAYS, rows)
 
     def subset(self, k: np.ndarray) -> tuple[Any, Any]:
         """Parameters and airframe of the local indices ``k`` (all of them: the stacked ones as they are)."""
@@ -166,8 +182,7 @@ class PositionControllerSystem(DroneControllerSystem):
         if k.size == 0:
             return
         r = self.sel if k.size == self.rows.size else self.rows[k]
-        sp = PositionSetpoint(*(read_only(a[r]) for a in (f.pos_sp_enu_m, f.vel_sp_enu_m_s, f.speed_limit_m_s,
-                                                           f.dist_to_go_m, f.yaw_sp_rad, f.yaw_rate_cmd_rad_s)))
+        sp = self.fleet_view(ctx, PositionSetpoint, POSITION_SETPOINT_ARRAYS, r)
         params, airframe = self.subset(k)
         out: AttitudeSetpoint = self.call_law(ctx, sp, self.state(ctx, r), airframe, params, r)
         f.vz_sp_m_s[r] = out.vz_m_s
@@ -207,8 +222,7 @@ class AttitudeControllerSystem(DroneControllerSystem):
         if attitude.any():
             ra = self.rows[attitude]
             f.vz_sp_m_s[ra] = f.vel_enu_m_s[ra, 2]
-        sp = AttitudeSetpoint(*(read_only(a[r]) for a in (f.vz_sp_m_s, f.roll_sp_rad, f.pitch_sp_rad,
-                                                           f.yaw_rate_sp_rad_s)))
+        sp = self.fleet_view(ctx, AttitudeSetpoint, ATTITUDE_SETPOINT_ARRAYS, r)
         out: ThrustTorqueCommand = self.call_law(ctx, sp, self.state(ctx, r), self.airframe, self.params, r)
         armed = mode != MODE_DISARMED
         thrust = np.where(attitude, f.thrust_cmd_frac[r], out.thrust_frac) if attitude.any() else out.thrust_frac
@@ -230,7 +244,7 @@ class MixerSystem(DroneControllerSystem):
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
         r = self.sel
-        cmd = ThrustTorqueCommand(read_only(f.thrust_frac_sp[r]), read_only(f.torque_cmd[r]))
+        cmd = self.fleet_view(ctx, ThrustTorqueCommand, ("thrust_frac_sp", "torque_cmd"), r)
         out = self.call_law(ctx, cmd, self.state(ctx, r), self.airframe, self.params, r)
         f.motor_frac_cmd[r] = np.minimum(np.maximum(finite_or_zero(out.motor_frac), 0.0), 1.0)
         if self._memory_names:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import esper
-import numpy as np
 
 from ..phases import Phase
 from ..world import StepContext
@@ -19,16 +18,19 @@ class PhysicsStepSystem(esper.Processor):
     phase = Phase.PHYSICS
     order = 0
 
+    def __init__(self) -> None:
+        self._seen_version = -1
+        self._bodies: list[int] = []
+
     def process(self, ctx: StepContext) -> None:
         f = ctx.fleet
-        rows = f.rows
-        if rows.size:
-            force = f.force_cmd_enu_n[rows]
-            torque = f.torque_cmd_enu_n_m[rows]
-            busy = np.any(force != 0.0, axis=1) | np.any(torque != 0.0, axis=1)
-            if busy.any():
-                r = rows[busy]
-                ctx.physics.apply_wrenches(f.body_id[r], f.pos_enu_m[r], force[busy], torque[busy])
-                f.force_cmd_enu_n[r] = 0.0
-                f.torque_cmd_enu_n_m[r] = 0.0
+        if f.version != self._seen_version:              # rows allocated or freed: their body ids again
+            self._bodies = f.body_id[f.rows].tolist()
+            self._seen_version = f.version
+        if self._bodies:
+            r = f.active                                 # a slice when the rows are contiguous: views
+            # the wrenches go to PyBullet as Python floats (tolist copies), so the arrays can be cleared after
+            ctx.physics.apply_wrenches(self._bodies, f.pos_enu_m[r], f.force_cmd_enu_n[r], f.torque_cmd_enu_n_m[r])
+            f.force_cmd_enu_n[r] = 0.0
+            f.torque_cmd_enu_n_m[r] = 0.0
         ctx.physics.step()

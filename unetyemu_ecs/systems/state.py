@@ -26,7 +26,7 @@ class StateReadbackSystem(esper.Processor):
 
     def __init__(self) -> None:
         self._seen_version = -1
-        self._bodies = np.empty(0, dtype=np.int64)
+        self._bodies: list[int] = []
 
     def prime(self, ctx: StepContext) -> None:
         """Read the initial state (before the first step) so that phases before STATE see real poses."""
@@ -38,11 +38,11 @@ class StateReadbackSystem(esper.Processor):
     def _read(self, ctx: StepContext, first: bool) -> None:
         f = ctx.fleet
         if f.version != self._seen_version:
-            self._bodies = f.body_id[f.rows].copy()
+            self._bodies = f.body_id[f.rows].tolist()
             self._seen_version = f.version
             first = True
         r = f.active                                     # the active rows (a slice when contiguous)
-        if self._bodies.size == 0:
+        if not self._bodies:
             return
         state = ctx.physics.read_states(self._bodies)                # (M, 13)
         pos, quat, vel, rate = state[:, 0:3], state[:, 3:7], state[:, 7:10], state[:, 10:13]
