@@ -13,7 +13,7 @@ import numpy as np
 
 from ..components.flight import GuidanceLimits
 from ..control.position import body_velocity_to_enu_sp
-from ..control.pursuit import pure_pursuit, route_lengths
+from ..control.pursuit import RouteGeometry, pursue
 from ..frames import yaw_rad_from_quat_xyzw
 from ..phases import Phase
 from ..world import StepContext
@@ -41,17 +41,20 @@ class RouteFollowingSystem(FleetSystem):
         self._lim_descent = np.array([lim.lim_descent_m_s for lim in limits], dtype=float)
         self._lead = np.array([lim.lead_distance_m for lim in limits], dtype=float)
         self._zone = np.array([lim.final_approach_m for lim in limits], dtype=float)
+        self._zone_min = np.maximum(self._zone, 1e-9)
         self._arrival = np.array([lim.arrival_radius_m for lim in limits], dtype=float)
         m = self.rows.size
+        self._velocity_limits = np.stack([np.full(m, np.inf), self._lim_climb, self._lim_descent], axis=1)
         self._stamps = np.full(m, -1, dtype=np.int64)
         self._n_points = np.full(m, 2, dtype=np.intp)
         self._route = np.zeros((m, 2, 3))
         self._speeds = np.ones((m, 2, 3))
-        self._seg_lengths, self._cum_lengths = route_lengths(self._route)     # kept with the routes
+        self._geometry = RouteGeometry(self._route, self._n_points, self._speeds)     # kept with the routes
 
     def _load_routes(self, f, changed: np.ndarray) -> None:
         """Copy new routes of the ``changed`` local indices into the padded arrays."""
         rows = self.rows
+        width = self._route.shape[1]
         for k in changed.tolist():
             route = f.route[rows[k]]
             if route is None:
@@ -69,44 +72,67 @@ class RouteFollowingSystem(FleetSystem):
             self._speeds[k, w:] = route.speeds_m_s[-1]
             self._n_points[k] = w
         self._stamps[changed] = f.route_stamp[rows[changed]]
-        self._seg_lengths, self._cum_lengths = route_lengths(self._route)
+        if self._route.shape[1] == width:          # the changed rows only (each row's numbers are its own)
+            self._geometry.update(changed, self._route, self._n_points, self._speeds)
+        else:                                      # wider padding: every row has new padded segments
+            self._geometry = RouteGeometry(self._route, self._n_points, self._speeds)
 
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
         rows = self.sel
-        changed = np.flatnonzero(f.route_stamp[rows] != self._stamps)
-        if changed.size:
-            self._load_routes(f, changed)
+        count = np.count_nonzero                         # (a quarter of the cost of .any() / .all() on a few rows)
+        changed = f.route_stamp[rows] != self._stamps
+        if count(changed):
+            self._load_routes(f, np.flatnonzero(changed))
         mode = f.flight_mode[rows]
         auto = (mode == MODE_AUTO) & f.has_route[rows]
-        if auto.any():
+        n_auto = count(auto)
+        if n_auto == auto.size:                          # every row follows its route (none flies a velocity)
+            self._follow_routes(ctx, None)
+            return
+        if n_auto:
             self._follow_routes(ctx, np.flatnonzero(auto))
         velocity = mode == MODE_VELOCITY
-        if velocity.any():
+        n_velocity = count(velocity)
+        if n_velocity == velocity.size:
+            self._velocity_setpoints(ctx, None)
+        elif n_velocity:
             self._velocity_setpoints(ctx, np.flatnonzero(velocity))
 
-    def _follow_routes(self, ctx: StepContext, k: np.ndarray) -> None:
-        """AUTO rows (local indices ``k``): pure pursuit on the route."""
+    def _follow_routes(self, ctx: StepContext, k: np.ndarray | None) -> None:
+        """AUTO rows (local indices ``k``, None: all rows): pure pursuit on the route."""
         f = ctx.fleet
-        r = self.sel if k.size == self.rows.size else self.rows[k]
-        res = pure_pursuit(f.pos_enu_m[r], self._route[k], self._n_points[k], f.route_segment[r], self._speeds[k],
-                           self._lead[k], self._zone[k], (self._seg_lengths[k], self._cum_lengths[k]))
-        f.route_segment[r] = res.segment
-        f.pos_sp_enu_m[r] = res.target_enu_m
-        f.dist_to_final_m[r] = res.dist_to_final_m
-        f.cross_track_m[r] = res.cross_track_m
-        f.arrived[r] = res.dist_to_final_m < self._arrival[k]
-        f.dist_to_go_m[r] = res.dist_to_go_m
-        f.speed_limit_m_s[r] = res.speed_lims_m_s
+        if k is None:
+            r = self.sel
+            target, seg, speeds, to_go, cross, to_final = pursue(f.pos_enu_m[r], f.route_segment[r], self._lead,
+                                                                 self._zone_min, self._geometry)
+            arrival = self._arrival
+        else:
+            r = self.rows[k]
+            target, seg, speeds, to_go, cross, to_final = pursue(f.pos_enu_m[r], f.route_segment[r], self._lead[k],
+                                                                 self._zone_min[k], self._geometry, k)
+            arrival = self._arrival[k]
+        f.route_segment[r] = seg
+        f.pos_sp_enu_m[r] = target
+        f.dist_to_final_m[r] = to_final
+        f.cross_track_m[r] = cross
+        f.arrived[r] = to_final < arrival
+        f.dist_to_go_m[r] = to_go
+        f.speed_limit_m_s[r] = speeds
         f.vel_sp_enu_m_s[r] = 0.0
 
-    def _velocity_setpoints(self, ctx: StepContext, k: np.ndarray) -> None:
-        """VELOCITY rows (local indices ``k``): the commanded body velocity in ENU, climb/descent clamped."""
+    def _velocity_setpoints(self, ctx: StepContext, k: np.ndarray | None) -> None:
+        """VELOCITY rows (local indices ``k``, None: all rows): the commanded body velocity in ENU,
+        climb/descent clamped."""
         f = ctx.fleet
-        r = self.rows[k]
+        if k is None:
+            r, climb, descent, limits = self.sel, self._lim_climb, self._lim_descent, self._velocity_limits
+        else:
+            r, climb, descent, limits = (self.rows[k], self._lim_climb[k], self._lim_descent[k],
+                                         self._velocity_limits[k])
         yaw = yaw_rad_from_quat_xyzw(f.quat_enu_flu_xyzw[r])
-        f.vel_sp_enu_m_s[r] = body_velocity_to_enu_sp(f.vel_cmd_flu_m_s[r], yaw, self._lim_climb[k], self._lim_descent[k])
+        f.vel_sp_enu_m_s[r] = body_velocity_to_enu_sp(f.vel_cmd_flu_m_s[r], yaw, climb, descent)
         f.pos_sp_enu_m[r] = np.nan
         f.yaw_sp_rad[r] = np.nan
         f.dist_to_go_m[r] = 0.0
-        f.speed_limit_m_s[r] = np.stack([np.full(len(r), np.inf), self._lim_climb[k], self._lim_descent[k]], axis=1)
+        f.speed_limit_m_s[r] = limits
