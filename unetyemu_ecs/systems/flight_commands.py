@@ -39,11 +39,19 @@ class FlightCommandSystem(esper.Processor):
 
     def __init__(self) -> None:
         self._script_next: dict[int, int] = {}      # entity -> index of the next keyframe to apply
+        self._drones_seen: object = None            # the GuidanceLimits query ensure_all_drones last completed
 
     def process(self, ctx: StepContext) -> None:
         f = ctx.fleet
-        ensure_all_drones()
-        serve_commands(ctx, GuidanceLimits, self._take, self._hold_after_lapse)
+        # esper answers a query with the same list object until any entity gains, loses or replaces a
+        # component: while it is the one seen after the last ensure_all_drones, every drone still has its
+        # NavRuntime and FlightParams
+        if esper.get_components(GuidanceLimits) is not self._drones_seen:
+            ensure_all_drones()
+            self._drones_seen = esper.get_components(GuidanceLimits)
+        # no command pending and no streamed teleop/cmd_vel lapsing: serve_commands would do nothing
+        if ctx.services.pending or np.count_nonzero(f.cmd_hold_until_s <= ctx.sim_time_s + 1e-9):
+            serve_commands(ctx, GuidanceLimits, self._take, self._hold_after_lapse)
         for ent, (slot, script) in esper.get_components(FleetSlot, TeleopScript):
             k = self._script_next.get(ent, 0)
             frames = script.keyframes

@@ -21,6 +21,8 @@ by the AUTO path, with PX4's parameters (:mod:`unetyemu_ecs.navigation.params`) 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
+from itertools import compress
 from typing import Any
 
 import esper
@@ -41,6 +43,9 @@ from .flight_state import (LANDED_IN_AIR, LANDED_ON_GROUND, LANDED_UNDEFINED, MI
                            LandedState, MissionState, NavState, Route, set_route)
 
 _NOTHING: frozenset[int] = frozenset()
+# by nav_state (int8 in FLIGHT_ARRAYS, read as uint8): flown from a stream or sticks (OFFBOARD, POSCTL, MANUAL)
+_STREAM_OR_STICKS = np.zeros(256, dtype=bool)
+_STREAM_OR_STICKS[[NAV_OFFBOARD, NAV_POSCTL, NAV_MANUAL]] = True
 LAND_TRIGGER_S = 0.3        # the land-detector conditions must hold this long (PX4 LandDetector trigger time)
 LAND_BELOW_M = 0.3          # a landing aims this far below the resting height, so touchdown happens
 TAKEOFF_DONE_M = 0.3        # TAKEOFF is done within this height of its altitude
@@ -593,6 +598,13 @@ def fence_active(nav: NavRuntime, params: FlightParams) -> bool:
                                   or params["GF_MAX_HOR_DIST"] > 0.0 or params["GF_MAX_VER_DIST"] > 0.0)
 
 
+def fences_active(navs: list[NavRuntime], params_of: list[FlightParams]) -> list[bool]:
+    """:func:`fence_active` of each drone (its test written out here: a call per drone costs more than the test)."""
+    return [nav.fence_enabled and ((nav.fence is not None and not nav.fence.empty)
+                                   or params.values["GF_MAX_HOR_DIST"] > 0.0 or params.values["GF_MAX_VER_DIST"] > 0.0)
+            for nav, params in zip(navs, params_of)]
+
+
 def arming_limits(f: Any) -> tuple[np.ndarray, np.ndarray]:
     """Per fleet row: the battery fraction below which arming is refused (-inf: no battery) and the
     payload bay's limit [kg] (inf: no bay), from the EnergyModel and PayloadBay components."""
@@ -611,17 +623,51 @@ def arm_blocks(f: Any, rows: np.ndarray, fence_why: list[str],
     order; ``fence_why`` holds :func:`fence_breach` of each row ("" inside, or no fence to breach);
     ``limits`` are :func:`arming_limits` when the caller keeps them (they change only with the ECS)."""
     low_frac, max_payload = arming_limits(f) if limits is None else limits
-    has_battery = np.isfinite(low_frac[rows])
-    low = has_battery & (f.low_battery[rows] | (f.soc_frac[rows] < low_frac[rows]))
-    motors_off = ~f.motors_enabled[rows]
-    overweight = motors_off & (f.payload_kg[rows] > max_payload[rows])
     outside = np.array([bool(w) for w in fence_why], dtype=bool)
-    landed = f.landed_state[rows]
-    in_air = (landed != LANDED_ON_GROUND) & (landed != LANDED_UNDEFINED)
-    codes = np.select([low, overweight, motors_off, outside, in_air],
-                      [int(ArmBlock.LOW_BATTERY), int(ArmBlock.OVERWEIGHT), int(ArmBlock.MOTORS_DISABLED),
-                       int(ArmBlock.OUTSIDE_FENCE), int(ArmBlock.IN_AIR)], default=int(ArmBlock.NONE))
-    return codes.astype(np.int8)
+    return _arm_codes(f, rows, _RowLimits(low_frac[rows], max_payload[rows]), outside)
+
+
+class _RowLimits:
+    """:func:`arming_limits` of some rows, with what the per-step check needs of them worked out once."""
+
+    __slots__ = ("low_frac", "has_battery", "all_battery", "max_payload", "any_bay")
+
+    def __init__(self, low_frac: np.ndarray, max_payload: np.ndarray) -> None:
+        self.low_frac = low_frac
+        self.has_battery = np.isfinite(low_frac)
+        self.all_battery = bool(self.has_battery.all())
+        self.max_payload = max_payload
+        self.any_bay = not bool((max_payload == np.inf).all())    # no bay anywhere: nothing is ever overweight
+
+
+_CODE_IN_AIR = np.int8(ArmBlock.IN_AIR)
+_CODE_IN_AIR_INT, _CODE_NONE = int(ArmBlock.IN_AIR), int(ArmBlock.NONE)
+_CODE_OUTSIDE, _CODE_MOTORS = int(ArmBlock.OUTSIDE_FENCE), int(ArmBlock.MOTORS_DISABLED)
+_CODE_OVERWEIGHT, _CODE_LOW = int(ArmBlock.OVERWEIGHT), int(ArmBlock.LOW_BATTERY)
+
+
+def _arm_codes(f: Any, sel: slice | np.ndarray, lim: _RowLimits, outside: np.ndarray | None) -> np.ndarray:
+    """The ArmBlock codes (int8) of the rows ``sel`` selects: the first failing check in the order low battery,
+    overweight, motors disabled, outside the fence (``outside``; None: nowhere), in the air; NONE if none fails.
+    Each check's code is written over the lower-priority ones, the in-air base first; a check that fails
+    nowhere (the usual case) costs one count."""
+    landed = f.landed_state[sel]
+    # in the air: neither UNDEFINED (0) nor ON_GROUND (1); the fleet's int8 states seen as uint8 are > 1 then
+    in_air = landed.view(np.uint8) > 1 if landed.dtype == np.int8 else (landed != 1) & (landed != 0)
+    codes = in_air.view(np.int8) * _CODE_IN_AIR
+    if outside is not None:
+        codes[outside] = _CODE_OUTSIDE
+    motors_off = ~f.motors_enabled[sel]
+    if np.count_nonzero(motors_off):
+        codes[motors_off] = _CODE_MOTORS
+        if lim.any_bay:
+            codes[motors_off & (f.payload_kg[sel] > lim.max_payload)] = _CODE_OVERWEIGHT
+    low = f.low_battery[sel] | (f.soc_frac[sel] < lim.low_frac)
+    if not lim.all_battery:
+        low &= lim.has_battery
+    if np.count_nonzero(low):
+        codes[low] = _CODE_LOW
+    return codes
 
 
 # -- land detector ---------------------------------------------------------------------------
@@ -636,10 +682,78 @@ class LandDetectorSystem(FleetSystem):
     order = 30
     requires = (RigidBody, NavRuntime, FlightParams)
 
+    def gather(self, ctx: StepContext) -> None:
+        bodies = [body.body_id for body in self.components[0]]
+        self._body_ids = bodies
+        k_of_body = {body: k for k, body in enumerate(bodies)}
+        self._k_of_body = k_of_body if len(k_of_body) == len(bodies) else None     # None: a body id twice
+        self._ents = self.entities.tolist()
+
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
         t = ctx.sim_time_s + ctx.dt_s           # the state read back is the state at the end of this step
         contact = ctx.physics.contact_map()     # one query for the whole world
+        sel = self.sel
+        navs = self.components[1]
+        m = len(navs)
+        # Only a drone whose body touches something, or that carries a package (which may), can be still on
+        # something: those rows get the whole test (_check_rows). Every other row touches nothing, so it is
+        # in the air this step, which is what that test would find: its timers are cleared, took_off is set
+        # when armed, and its state is the airborne one.
+        k_of_body = self._k_of_body
+        if k_of_body is None:
+            check = [k for k, body in enumerate(self._body_ids) if body in contact]
+        else:
+            check = [k_of_body[body] for body in contact if body in k_of_body]
+        nan = math.nan
+        carrying = np.flatnonzero(f.payload_entity[sel] >= 0)
+        if carrying.size:
+            check = sorted(set(check).union(carrying.tolist()))
+        else:
+            check.sort()
+        modes, nav_states = f.flight_mode[sel], f.nav_state[sel]
+        states = np.full(m, LANDED_IN_AIR, dtype=np.int8)      # the new landed states, written back at once
+        if check:
+            self._check_rows(ctx, t, contact, check, states)
+            free_mask = np.ones(m, dtype=bool)
+            free_mask[check] = False
+            free_list = free_mask.tolist()
+            free = list(compress(navs, free_list))
+            armed = list(compress((modes != MODE_DISARMED).tolist(), free_list))
+        else:
+            free_mask = None
+            free = navs
+            armed = None
+        if armed is None and np.count_nonzero(modes) == m:     # all armed (flight_mode DISARMED is 0)
+            for nav in free:
+                nav.contact_since_s = nan
+                nav.ground_since_s = nan
+                nav.took_off = True
+        else:
+            for nav in free:
+                nav.contact_since_s = nan
+                nav.ground_since_s = nan
+            for nav in compress(free, (modes != MODE_DISARMED).tolist() if armed is None else armed):
+                nav.took_off = True
+        # the airborne state is IN_AIR but while taking off or landing: a TAKEOFF or MISSION nav state, or a
+        # navigator mode (_airborne_state's first test)
+        moded = [nav for nav in navs if nav.mode]
+        special = (nav_states == NAV_TAKEOFF) | (nav_states == NAV_MISSION)
+        if moded or np.count_nonzero(special):
+            if moded:
+                special |= np.array([bool(nav.mode) for nav in navs], dtype=bool)
+            if free_mask is not None:
+                special &= free_mask
+            ents, nav_state_list = self._ents, nav_states.tolist()
+            for k in np.flatnonzero(special).tolist():
+                states[k] = int(self._airborne_state(ents[k], nav_state_list[k], navs[k]))
+        f.landed_state[sel] = states
+
+    def _check_rows(self, ctx: StepContext, t: float, contact: dict, check: list[int],
+                    states: np.ndarray) -> None:
+        """The land detector's test on the rows ``check`` (positions in ``rows``, ascending), one by one; their
+        new landed states go to ``states``."""
+        f = ctx.fleet
         rows = self.rows
         vel = f.vel_enu_m_s[rows]
         speed_z = np.abs(vel[:, 2]).tolist()
@@ -647,9 +761,10 @@ class LandDetectorSystem(FleetSystem):
         rate = np.linalg.norm(f.rate_flu_rad_s[rows], axis=1).tolist()
         packages = f.payload_entity[rows].tolist()
         landed = f.landed_state[rows].tolist()
-        states = list(landed)                   # the new landed states, written back at once
         modes, nav_states = f.flight_mode[rows].tolist(), f.nav_state[rows].tolist()
-        for k, (ent, body, nav, params) in enumerate(zip(self.entities.tolist(), *self.components)):
+        ents, (bodies, navs, params_of) = self._ents, self.components
+        for k in check:
+            ent, body, nav, params = ents[k], bodies[k], navs[k], params_of[k]
             touching = contact.get(body.body_id, _NOTHING)
             if packages[k] >= 0:
                 carried = esper.component_for_entity(packages[k], RigidBody).body_id
@@ -670,12 +785,13 @@ class LandDetectorSystem(FleetSystem):
                 if prev != LANDED_ON_GROUND:
                     nav.ground_since_s = t
                     states[k] = LANDED_ON_GROUND
+                else:
+                    states[k] = prev
                 continue
             nav.ground_since_s = math.nan
             if modes[k] != MODE_DISARMED:
                 nav.took_off = True
             states[k] = int(self._airborne_state(ent, nav_states[k], nav))
-        f.landed_state[rows] = states
 
     @staticmethod
     def _airborne_state(ent: int, nav_state: int, nav: NavRuntime) -> int:
@@ -708,24 +824,59 @@ class NavigatorSystem(FleetSystem):
     requires = (NavRuntime, FlightParams)
 
     def gather(self, ctx: StepContext) -> None:
-        self._limits = arming_limits(ctx.fleet)       # from the battery and bay components: kept with the rows
+        self._limits = low_frac, max_payload = arming_limits(ctx.fleet)     # from the battery and bay components
+        rows = self.rows
+        self._row_limits = _RowLimits(low_frac[rows], max_payload[rows])    # kept with the rows
+        self._rows_list, self._ents = rows.tolist(), self.entities.tolist()
 
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
-        t = ctx.sim_time_s
-        rows = self.rows
-        drones = list(zip(self.entities.tolist(), *self.components))      # (entity, NavRuntime, FlightParams)
-        unset = rows[~f.home_set[rows]]
-        if unset.size:
+        sel = self.sel
+        navs, params_of = self.components
+        m = len(navs)
+        home_set = f.home_set[sel]
+        if np.count_nonzero(home_set) != m:
+            unset = self.rows[~home_set]
             f.home_enu_m[unset] = f.pos_enu_m[unset]
             f.home_set[unset] = True
-        fenced = [fence_active(nav, params) for _, nav, params in drones]
-        why = [fence_breach(f, row, nav, params) if on else ""
-               for on, row, (_, nav, params) in zip(fenced, rows.tolist(), drones)]
-        f.arm_block[rows] = arm_blocks(f, rows, why, self._limits)
-        modes, nav_states = f.flight_mode[rows].tolist(), f.nav_state[rows].tolist()
-        grounded = (f.landed_state[rows] == LANDED_ON_GROUND).tolist()     # only the land detector writes it
-        for k, (row, (ent, nav, params)) in enumerate(zip(rows.tolist(), drones)):
+        fenced = fences_active(navs, params_of)
+        any_fenced = any(fenced)
+        outside = None
+        if any_fenced:
+            outside = [bool(fence_breach(f, row, nav, params)) if on else False
+                       for on, row, nav, params in zip(fenced, self._rows_list, navs, params_of)]
+        f.arm_block[sel] = _arm_codes(f, sel, self._row_limits,
+                                      None if outside is None else np.array(outside, dtype=bool))
+        # The rows with something to do one by one: disarmed, on the ground (auto-disarm), in a navigator mode,
+        # flying a stream or sticks (OFFBOARD, POSCTL, MANUAL), or with a fence to enforce. Every other drone
+        # flies on with nothing to breach: only its fence_ok is set (what the loop below would do).
+        nav_states, landed = f.nav_state[sel], f.landed_state[sel]
+        busy = ((f.flight_mode[sel] == MODE_DISARMED) | (landed == LANDED_ON_GROUND)
+                | _STREAM_OR_STICKS[nav_states.view(np.uint8)])
+        if [nav for nav in navs if nav.mode]:
+            busy |= np.array([bool(nav.mode) for nav in navs], dtype=bool)
+        if any_fenced:
+            busy |= np.array([bool(on) for on in fenced], dtype=bool)
+        n_busy = np.count_nonzero(busy)
+        if n_busy == 0:
+            for nav in navs:
+                nav.fence_ok = True
+            return
+        if n_busy < m:
+            for nav in compress(navs, (~busy).tolist()):
+                nav.fence_ok = True
+        self._busy_rows(ctx, np.flatnonzero(busy).tolist(), fenced, (landed == LANDED_ON_GROUND).tolist())
+
+    def _busy_rows(self, ctx: StepContext, busy: Iterable[int], fenced: list[bool], grounded: list[bool]) -> None:
+        """One step of the navigator for the drones at positions ``busy`` of ``rows``, one by one in row order;
+        ``grounded``: landed_state is ON_GROUND, by position (only the land detector writes it)."""
+        f = ctx.fleet
+        t = ctx.sim_time_s
+        sel = self.sel
+        rows, ents, (navs, params_of) = self._rows_list, self._ents, self.components
+        modes, nav_states = f.flight_mode[sel].tolist(), f.nav_state[sel].tolist()
+        for k in busy:
+            row, ent, nav, params = rows[k], ents[k], navs[k], params_of[k]
             if modes[k] == MODE_DISARMED:
                 if nav.mode:
                     _set_mode(nav, "", "", t, None)
@@ -806,7 +957,7 @@ class NavigatorSystem(FleetSystem):
 
 
 __all__ = ["LandDetectorSystem", "NavigatorSystem", "arm_block", "arm_blocks", "arming_refusal", "brake_and_hold",
-           "disarm", "enforce_fence", "ensure_all_drones", "ensure_nav", "fence_active", "fence_breach", "fly_follow",
-           "fly_manual", "fly_offboard", "fly_orbit", "follow_fresh", "hold", "land_route", "manual_fresh",
-           "offboard_fresh", "offboard_lost", "rtl_destination", "start_follow", "start_land", "start_orbit",
-           "start_rtl", "start_takeoff"]
+           "disarm", "enforce_fence", "ensure_all_drones", "ensure_nav", "fence_active", "fence_breach",
+           "fences_active", "fly_follow", "fly_manual", "fly_offboard", "fly_orbit", "follow_fresh", "hold",
+           "land_route", "manual_fresh", "offboard_fresh", "offboard_lost", "rtl_destination", "start_follow",
+           "start_land", "start_orbit", "start_rtl", "start_takeoff"]
