@@ -22,6 +22,7 @@ def quadratic_drag_enu_n(vel_rel_enu_m_s: np.ndarray, R_enu_flu: np.ndarray, dra
     (M, 3) [N], ENU: ``-0.5 rho C_d A_i |v| v_i`` per body axis, rotated back to ENU.
     """
     v_flu = np.einsum("mji,mj->mi", R_enu_flu, vel_rel_enu_m_s)
-    speed = np.linalg.norm(vel_rel_enu_m_s, axis=1)
+    v = np.asarray(vel_rel_enu_m_s, dtype=float)
+    speed = np.sqrt(np.add.reduce(v * v, axis=1))     # np.linalg.norm(v, axis=1), as it computes it
     f_flu = -0.5 * (air_density_kg_m3 * drag_coeff * speed)[:, None] * area_flu_m2 * v_flu
     return np.einsum("mij,mj->mi", R_enu_flu, f_flu)

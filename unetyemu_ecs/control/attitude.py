@@ -67,11 +67,13 @@ def vertical_speed_to_thrust_frac(vz_sp_m_s: np.ndarray, vz_m_s: np.ndarray, acc
 
     trial = np.minimum(np.maximum(vz_int + err * dt_s, -gains.lim_vz_int_m_s), gains.lim_vz_int_m_s)
     u = output(trial)
-    winding = ((u > 1.0) & (err > 0.0)) | ((u < 0.0) & (err < 0.0))
-    if winding.any():
-        trial = np.where(winding, vz_int, trial)
-        u = output(trial)
-    return np.minimum(np.maximum(u, 0.0), 1.0), trial
+    thrust = np.minimum(np.maximum(u, 0.0), 1.0)
+    if np.count_nonzero(thrust != u):          # some output saturated (or NaN): it may be winding up
+        winding = ((u > 1.0) & (err > 0.0)) | ((u < 0.0) & (err < 0.0))
+        if np.count_nonzero(winding):
+            trial = np.where(winding, vz_int, trial)
+            thrust = np.minimum(np.maximum(output(trial), 0.0), 1.0)
+    return thrust, trial
 
 
 def attitude_to_torque_cmd(roll_sp_rad: np.ndarray, pitch_sp_rad: np.ndarray, yaw_rate_sp_rad_s: np.ndarray,
@@ -81,10 +83,21 @@ def attitude_to_torque_cmd(roll_sp_rad: np.ndarray, pitch_sp_rad: np.ndarray, ya
 
     rate_flu_rad_s : (N, 3) [rad/s] measured body rates, FLU
     """
-    u_roll = gains.gain_att_p * (roll_sp_rad - roll_rad) - gains.gain_rate_d * rate_flu_rad_s[:, 0]
-    u_pitch = gains.gain_att_p * (pitch_sp_rad - pitch_rad) - gains.gain_rate_d * rate_flu_rad_s[:, 1]
-    u_yaw = gains.gain_yaw_rate_p * (yaw_rate_sp_rad_s - rate_flu_rad_s[:, 2])
-    return np.minimum(np.maximum(np.stack([u_roll, u_pitch, u_yaw], axis=1), -1.0), 1.0)
+    # written column by column into one (N, 3) array, through its transpose so that a scalar gain and an (N,)
+    # gain broadcast alike: u_roll = kp (roll_sp - roll) - kd p, u_pitch likewise, u_yaw = k_yaw (r_sp - r)
+    rate_t = rate_flu_rad_s.T
+    u = np.empty((rate_t.shape[1], 3))
+    u_t = u.T
+    np.subtract(roll_sp_rad, roll_rad, out=u_t[0])
+    np.subtract(pitch_sp_rad, pitch_rad, out=u_t[1])
+    u_rp = u_t[:2]
+    np.multiply(gains.gain_att_p, u_rp, out=u_rp)
+    np.subtract(u_rp, gains.gain_rate_d * rate_t[:2], out=u_rp)
+    u_yaw = u_t[2]
+    np.subtract(yaw_rate_sp_rad_s, rate_t[2], out=u_yaw)
+    np.multiply(gains.gain_yaw_rate_p, u_yaw, out=u_yaw)
+    np.maximum(u, -1.0, out=u)
+    return np.minimum(u, 1.0, out=u)
 
 
 def manual_to_setpoints(stick: np.ndarray, lim_tilt_rad: np.ndarray, lim_climb_m_s: np.ndarray,

@@ -36,6 +36,10 @@ MIX_X = 0.5 * np.array([
 # reaction torque on the body about +z per unit thrust (FL, BR spin CCW seen from above; FR, BL CW)
 SPIN_REACTION_SIGN = np.array([-1.0, +1.0, -1.0, +1.0])
 
+# the mix's two parts as :func:`mix_x_quad` uses them (kept, not rebuilt each step)
+_MIX_RP_T = MIX_X[:, :2].T          # (2, 4) roll/pitch -> motors (a view of MIX_X, as before)
+_MIX_YAW_ROW = MIX_X[:, 2][None, :]  # (1, 4) yaw -> motors
+
 _MOTOR_DIRS_FLU = np.array([[+1.0, +1.0], [+1.0, -1.0], [-1.0, -1.0], [-1.0, +1.0]]) / np.sqrt(2.0)
 
 
@@ -75,19 +79,19 @@ def mix_x_quad(thrust_frac: np.ndarray, torque_cmd: np.ndarray) -> np.ndarray:
     """
     thrust = np.asarray(thrust_frac, dtype=float).reshape(-1)
     torque = np.asarray(torque_cmd, dtype=float).reshape(-1, 3)
-    if not (np.isfinite(thrust).all() and np.isfinite(torque).all()):
+    if np.count_nonzero(np.isfinite(thrust)) + np.count_nonzero(np.isfinite(torque)) != thrust.size + torque.size:
         bad = ~np.isfinite(thrust) | ~np.all(np.isfinite(torque), axis=1)
         thrust, torque = np.where(bad, 0.0, thrust), np.where(bad[:, None], 0.0, torque)
     torque = np.minimum(np.maximum(torque, -1e6), 1e6)
     thrust = np.minimum(np.maximum(thrust, 0.0), 1.0)
 
-    rp = torque[:, :2] @ MIX_X[:, :2].T                       # (N, 4) roll/pitch differential
-    yw = torque[:, 2:3] * MIX_X[:, 2][None, :]                # (N, 4) yaw differential
+    rp = torque[:, :2] @ _MIX_RP_T                            # (N, 4) roll/pitch differential
+    yw = torque[:, 2:3] * _MIX_YAW_ROW                        # (N, 4) yaw differential
 
     # 1. roll/pitch alone must fit in the [0, 1] range: scale down uniformly if their spread is > 1
-    rp_max, rp_min = rp.max(axis=1), rp.min(axis=1)
+    rp_max, rp_min = np.maximum.reduce(rp, axis=1), np.minimum.reduce(rp, axis=1)
     spread = rp_max - rp_min
-    if (spread > 1.0).any():
+    if np.count_nonzero(spread > 1.0):
         shrink = np.where(spread > 1.0, 1.0 / np.maximum(spread, 1e-12), 1.0)
         rp = rp * shrink[:, None]
         rp_max, rp_min = rp_max * shrink, rp_min * shrink
@@ -96,9 +100,10 @@ def mix_x_quad(thrust_frac: np.ndarray, torque_cmd: np.ndarray) -> np.ndarray:
     base = thrust[:, None] + rp                                # (N, 4) in [0, 1]
     # 3. yaw with the largest scale in [0, 1] that keeps every motor in [0, 1]: per motor, the room
     #    left in the direction its yaw share pushes, over that share (inf where the share is below 1e-12)
-    room = np.divide(np.where(yw > 0.0, 1.0 - base, -base), yw, out=np.full_like(base, np.inf),
-                     where=np.abs(yw) > 1e-12)
-    scale = np.minimum(np.maximum(room.min(axis=1), 0.0), 1.0)
+    room = np.empty_like(base)
+    room.fill(np.inf)
+    np.divide(np.where(yw > 0.0, 1.0 - base, -base), yw, out=room, where=np.abs(yw) > 1e-12)
+    scale = np.minimum(np.maximum(np.minimum.reduce(room, axis=1), 0.0), 1.0)
     out = base + scale[:, None] * yw
     # 4. numerical safety only
     return np.minimum(np.maximum(out, 0.0), 1.0)

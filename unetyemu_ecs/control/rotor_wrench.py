@@ -36,7 +36,7 @@ def rotor_wrench_enu(thrust_n: np.ndarray, R_enu_flu: np.ndarray, torque_matrix_
     four motor thrusts ``thrust_n`` (N, 4) of bodies with attitude ``R_enu_flu`` (N, 3, 3), for the
     matrices of :func:`rotor_torque_matrix_flu`."""
     thrust = np.asarray(thrust_n, dtype=float)
-    force = thrust.sum(axis=1)[:, None] * R_enu_flu[:, :, 2]
+    force = np.add.reduce(thrust, axis=1)[:, None] * R_enu_flu[:, :, 2]      # thrust.sum(axis=1), without the method's wrapper
     torque_flu = np.einsum("nkj,nj->nk", torque_matrix_flu, thrust)
     return force, np.einsum("nij,nj->ni", R_enu_flu, torque_flu)
 

@@ -70,6 +70,7 @@ class MotorSystem(FleetSystem):
         self._kappa = np.array([c.yaw_moment_coeff_m for c in comps])
         tau = np.array([c.motor_tau_s for c in comps], dtype=float)
         self._alpha = np.where(tau > 0.0, 1.0 - np.exp(-ctx.dt_s / np.maximum(tau, 1e-12)), 1.0)   # lag per step
+        self._alpha_col = self._alpha[:, None]
         arms = np.array([c.arm_length_m for c in comps])
         self._torque_matrix = rotor_torque_matrix_flu(motor_positions_flu_m(arms), self._kappa)   # (M, 3, 4)
         self._gather_ground_effect(ctx, comps, arms)
@@ -120,7 +121,9 @@ class MotorSystem(FleetSystem):
         if self._ge and self._lag:
             lagged = lagged / f.ground_effect_factor[r]                       # out of ground effect
         # a disabled motor stops at once
-        thrust = np.where(live[:, None], lagged + self._alpha[:, None] * (cmd - lagged), 0.0)
+        thrust = lagged + self._alpha_col * (cmd - lagged)
+        if np.count_nonzero(live) != live.size:
+            thrust = np.where(live[:, None], thrust, 0.0)
         if self._ge:
             factor = self._ground_effect_factor(ctx, live, thrust)
             if factor is not None:
@@ -141,7 +144,7 @@ class MotorSystem(FleetSystem):
         f = ctx.fleet
         pos_enu_m = f.pos_enu_m[self._ge_sel]
         low = pos_enu_m[:, 2] < self._ge_gate_z_m
-        if not low.any():
+        if not np.count_nonzero(low):
             return None
         R_enu_flu = f.R_enu_flu[self._ge_sel]
         active = np.flatnonzero(low & live[self._ge_k] & (R_enu_flu[:, 2, 2] > 0.0))   # thrust pointing up
