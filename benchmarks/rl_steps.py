@@ -209,7 +209,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{'case':<23} {'envs':>4} {'wall steps/s (min-max)':>24} {'CPU steps/s (min-max)':>24} "
           f"{'ends/1k':>7} {'ours / peer':>11}")
     for name, bench in benches.items():
-        ratio = f"{statistics.median(cpu[name]) / peer_cpu[PEER_OF[name]]:11.2f}" if name in PEER_OF else f"{'':>11}"
+        peer = peer_cpu.get(PEER_OF.get(name, ""))         # None: no peer case to divide by in this run
+        ratio = f"{statistics.median(cpu[name]) / peer:11.2f}" if peer else f"{'':>11}"
         if name in PEER_OF and not measure_peer:
             ratio += "*"
         print(f"{name:<23} {bench.spec.n_envs:>4} {spread(wall[name]):>24} {spread(cpu[name]):>24} "
