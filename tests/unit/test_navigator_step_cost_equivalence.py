@@ -105,7 +105,7 @@ def old_navigator_update(self, ctx):
     if unset.size:
         f.home_enu_m[unset] = f.pos_enu_m[unset]
         f.home_set[unset] = True
-    fenced = [fence_active(nav, params) for _, nav, params in drones]
+    fenced = [old_fence_active(nav, params) for _, nav, params in drones]
     why = [fence_breach(f, row, nav, params) if on else ""
            for on, row, (_, nav, params) in zip(fenced, rows.tolist(), drones)]
     f.arm_block[rows] = old_arm_blocks(f, rows, why, self._limits)
@@ -214,7 +214,12 @@ def test_the_fleet_stores_landed_and_nav_states_as_int8_which_the_navigator_read
     assert FLIGHT_ARRAYS["nav_state"][:2] == ((), np.int8)
 
 
-def test_the_fleet_fence_test_is_fence_active_of_each_drone():
+def old_fence_active(nav, params):
+    return nav.fence_enabled and ((nav.fence is not None and not nav.fence.empty)
+                                  or params["GF_MAX_HOR_DIST"] > 0.0 or params["GF_MAX_VER_DIST"] > 0.0)
+
+
+def test_the_fleet_fence_test_is_the_old_fence_test_of_each_drone():
     navs, params_of = [], []
     for enabled in (True, False):
         for fence in (None, Geofence(), Geofence(inclusion_circles=((0.0, 0.0, 10.0),))):
@@ -225,8 +230,9 @@ def test_the_fleet_fence_test_is_fence_active_of_each_drone():
                     params.set("GF_MAX_VER_DIST", ver)
                     navs.append(NavRuntime(fence=fence, fence_enabled=enabled))
                     params_of.append(params)
-    expected = [fence_active(nav, params) for nav, params in zip(navs, params_of)]
+    expected = [old_fence_active(nav, params) for nav, params in zip(navs, params_of)]
     assert fences_active(navs, params_of) == expected
+    assert [fence_active(nav, params) for nav, params in zip(navs, params_of)] == expected
     assert any(expected) and not all(expected)
 
 

@@ -594,12 +594,12 @@ def arm_block(f: Any, ent: int, row: int, nav: NavRuntime, params: FlightParams)
 
 def fence_active(nav: NavRuntime, params: FlightParams) -> bool:
     """The drone's geofence can be breached: enabled, with a zone or a GF_MAX_* distance limit."""
-    return nav.fence_enabled and ((nav.fence is not None and not nav.fence.empty)
-                                  or params["GF_MAX_HOR_DIST"] > 0.0 or params["GF_MAX_VER_DIST"] > 0.0)
+    return fences_active([nav], [params])[0]
 
 
 def fences_active(navs: list[NavRuntime], params_of: list[FlightParams]) -> list[bool]:
-    """:func:`fence_active` of each drone (its test written out here: a call per drone costs more than the test)."""
+    """:func:`fence_active` of each drone, the test written out once for the fleet (a call per drone costs more
+    than the test)."""
     return [nav.fence_enabled and ((nav.fence is not None and not nav.fence.empty)
                                    or params.values["GF_MAX_HOR_DIST"] > 0.0 or params.values["GF_MAX_VER_DIST"] > 0.0)
             for nav, params in zip(navs, params_of)]
