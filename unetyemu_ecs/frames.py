@@ -356,9 +356,11 @@ def yaw_rad_from_quat_xyzw(q: ArrayLike) -> np.ndarray:
     """
     q = _f64(q)
     x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    # atan2 is scale-invariant, so the un-normalised matrix entries are fine here.
-    n2 = x * x + y * y + z * z + w * w
-    return np.arctan2(2.0 * (x * y + w * z), n2 - 2.0 * (y * y + z * z))
+    # atan2 is scale-invariant, so the un-normalised matrix entries are fine here. The squares come from one
+    # product: x x + y y + z z + w w and y y + z z, summed in that order
+    sq = q * q
+    n2 = sq[..., 0] + sq[..., 1] + sq[..., 2] + sq[..., 3]
+    return np.arctan2(2.0 * (x * y + w * z), n2 - 2.0 * (sq[..., 1] + sq[..., 2]))
 
 
 # ---------------------------------------------------------------------------------------------

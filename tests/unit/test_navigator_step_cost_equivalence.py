@@ -209,7 +209,7 @@ def test_arming_verdicts_of_states_stored_wider_than_the_fleets_int8_are_the_sam
     assert_array_equal(arm_blocks(f, np.arange(50), [""] * 50, limits), expected)
 
 
-def test_the_fleet_stores_landed_and_nav_states_as_int8_which_the_navigator_reads_as_uint8():
+def test_the_fleet_stores_landed_and_nav_states_as_int8_and_the_navigator_reads_nav_states_as_uint8():
     assert FLIGHT_ARRAYS["landed_state"][:2] == ((), np.int8)
     assert FLIGHT_ARRAYS["nav_state"][:2] == ((), np.int8)
 

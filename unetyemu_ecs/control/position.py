@@ -14,7 +14,7 @@ from typing import Annotated
 import numpy as np
 
 from ..config.schema import Ge, Gt, Le
-from ..frames import row_norm
+from ..frames import row_norm, yaw_rad_from_quat_xyzw
 from ..units import GRAVITY_M_S2, wrap_angle_rad
 from .layers import Airframe, AttitudeSetpoint, DroneState, PositionSetpoint
 
@@ -54,15 +54,6 @@ def _per_row(gain: float | np.ndarray) -> float | np.ndarray:
     if type(gain) is not np.ndarray or gain.dtype != np.float64:
         gain = np.asarray(gain, dtype=float)
     return gain[..., None] if gain.ndim else float(gain)
-
-
-def _yaw_rad(q: np.ndarray) -> np.ndarray:
-    """:func:`~unetyemu_ecs.frames.yaw_rad_from_quat_xyzw` of (N, 4) float64 quaternions with fewer array
-    operations: the same products and sums in the same order (the same numbers)."""
-    x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    sq = q * q
-    n2 = sq[:, 0] + sq[:, 1] + sq[:, 2] + sq[:, 3]
-    return np.arctan2(2.0 * (x * y + w * z), n2 - 2.0 * (sq[:, 1] + sq[:, 2]))
 
 
 def position_to_velocity_sp(pos_sp_enu_m: np.ndarray, pos_enu_m: np.ndarray, dist_to_go_m: np.ndarray,
@@ -162,20 +153,12 @@ def accel_to_tilt_sp(acc_sp_h_enu_m_s2: np.ndarray, yaw_rad: np.ndarray, lim_til
     return _accel_to_tilt(np.asarray(acc_sp_h_enu_m_s2, dtype=float), yaw_rad, GRAVITY_M_S2 * np.tan(lim_tilt_rad))
 
 
-def _wrap_angle_rad(angle_rad: np.ndarray) -> np.ndarray:
-    """:func:`~unetyemu_ecs.units.wrap_angle_rad` of a float64 array (the same operations)."""
-    return np.pi - np.mod(np.pi - angle_rad, 2.0 * np.pi)
-
-
 def heading_to_yaw_rate_sp(yaw_sp_rad: np.ndarray, yaw_rad: np.ndarray, lim_yaw_rate_rad_s: np.ndarray,
                            gains: GuidanceGains) -> np.ndarray:
     """Yaw-rate setpoint (N,) [rad/s] turning the shortest way to ``yaw_sp`` (NaN or infinite = hold: 0)."""
     err = yaw_sp_rad - yaw_rad
     finite = np.isfinite(err)
-    if type(err) is not np.ndarray or not err.ndim or err.dtype != np.float64:
-        err = wrap_angle_rad(np.where(finite, err, 0.0))
-    else:
-        err = _wrap_angle_rad(err if _all(finite) else np.where(finite, err, 0.0))
+    err = wrap_angle_rad(err if _all(finite) else np.where(finite, err, 0.0))
     return np.minimum(np.maximum(gains.gain_yaw_p * err, -lim_yaw_rate_rad_s), lim_yaw_rate_rad_s)
 
 
@@ -213,23 +196,21 @@ def cascade_pid_law(sp: PositionSetpoint, state: DroneState, airframe: Airframe,
     to_pos = sp.flies_to_position
     n_to_pos = np.count_nonzero(to_pos)
     pos = state.pos_enu_m
-    if n_to_pos == to_pos.size:                   # every row flies to a position (np.where would pick them all)
-        vel_sp = position_to_velocity_sp(sp.pos_enu_m, pos, sp.dist_to_go_m, sp.speed_limit_m_s[:, 0],
+    if n_to_pos == 0:                             # every row flies its velocity
+        vel_sp = np.array(sp.vel_enu_m_s, dtype=float)
+    else:                                         # (when every row flies to a position, no np.where is needed)
+        every = n_to_pos == to_pos.size
+        target = sp.pos_enu_m if every else np.where(to_pos[:, None], sp.pos_enu_m, pos)
+        dist_to_go = sp.dist_to_go_m if every else np.where(to_pos, sp.dist_to_go_m, 0.0)
+        vel_sp = position_to_velocity_sp(target, pos, dist_to_go, sp.speed_limit_m_s[:, 0],
                                          np.minimum(sp.speed_limit_m_s[:, 1], airframe.lim_climb_m_s),
                                          np.minimum(sp.speed_limit_m_s[:, 2], airframe.lim_descent_m_s), params)
-    elif n_to_pos == 0:                           # every row flies its velocity
-        vel_sp = np.array(sp.vel_enu_m_s, dtype=float)
-    else:
-        target = np.where(to_pos[:, None], sp.pos_enu_m, pos)
-        vel_to_pos = position_to_velocity_sp(target, pos, np.where(to_pos, sp.dist_to_go_m, 0.0),
-                                             sp.speed_limit_m_s[:, 0],
-                                             np.minimum(sp.speed_limit_m_s[:, 1], airframe.lim_climb_m_s),
-                                             np.minimum(sp.speed_limit_m_s[:, 2], airframe.lim_descent_m_s), params)
-        vel_sp = np.where(to_pos[:, None], vel_to_pos, sp.vel_enu_m_s)
+        if not every:
+            vel_sp = np.where(to_pos[:, None], vel_sp, sp.vel_enu_m_s)
     lim_acc = GRAVITY_M_S2 * np.tan(airframe.max_tilt_rad)
     acc_h, vel_int, limited = _velocity_to_accel(vel_sp, state.vel_enu_m_s, memory["vel_int_m_s"], dt_s, lim_acc,
                                                  params)
-    yaw = _yaw_rad(np.asarray(state.quat_enu_flu_xyzw, dtype=float))
+    yaw = yaw_rad_from_quat_xyzw(state.quat_enu_flu_xyzw)
     roll_sp, pitch_sp = _accel_to_tilt(acc_h, yaw, lim_acc if limited else None)
     hold_heading = np.isfinite(sp.yaw_rad)
     lim_rate = airframe.lim_yaw_rate_rad_s

@@ -641,7 +641,6 @@ class _RowLimits:
 
 
 _CODE_IN_AIR = np.int8(ArmBlock.IN_AIR)
-_CODE_IN_AIR_INT, _CODE_NONE = int(ArmBlock.IN_AIR), int(ArmBlock.NONE)
 _CODE_OUTSIDE, _CODE_MOTORS = int(ArmBlock.OUTSIDE_FENCE), int(ArmBlock.MOTORS_DISABLED)
 _CODE_OVERWEIGHT, _CODE_LOW = int(ArmBlock.OVERWEIGHT), int(ArmBlock.LOW_BATTERY)
 
@@ -652,8 +651,7 @@ def _arm_codes(f: Any, sel: slice | np.ndarray, lim: _RowLimits, outside: np.nda
     Each check's code is written over the lower-priority ones, the in-air base first; a check that fails
     nowhere (the usual case) costs one count."""
     landed = f.landed_state[sel]
-    # in the air: neither UNDEFINED (0) nor ON_GROUND (1); the fleet's int8 states seen as uint8 are > 1 then
-    in_air = landed.view(np.uint8) > 1 if landed.dtype == np.int8 else (landed != 1) & (landed != 0)
+    in_air = (landed != LANDED_ON_GROUND) & (landed != LANDED_UNDEFINED)
     codes = in_air.view(np.int8) * _CODE_IN_AIR
     if outside is not None:
         codes[outside] = _CODE_OUTSIDE
