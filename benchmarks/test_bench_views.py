@@ -3,17 +3,22 @@ and the built-in web view, each with a live consumer and with a stalled one (iss
 less than 10 % of the real-time factor, and a stalled consumer nothing).
 
 Every variant builds worlds/urban_delivery.yaml afresh, lets it run 1 simulated second (servers up,
-the client subscribed, serialisers built), then times RUN_S simulated seconds as fast as it goes.
+the client subscribed, serialisers built), then times RUN_S simulated seconds as fast as it goes. A
+stalled client stops reading after that first second; the run goes on STALL_SETTLE_S simulated
+seconds (its socket's buffers fill, the server notices) before the timed part: what is measured is
+what a client that stays stalled costs.
 The variants run interleaved, ROUNDS times, so that a busy machine slows them alike; the figure is
 each one's median real-time factor against the median of the runs without any consumer. Consumers
 are separate processes (benchmarks/view_client.py), as a real Foxglove or browser is:
 
     plain            no transport
     record           --record (the recorder's worker process writes the bag)
+    foxglove-idle    --foxglove, nobody connected (what serving costs before anyone watches)
     foxglove         --foxglove with a client subscribed to every channel, reading
-    foxglove-stalled the same client, which stops reading once subscribed
+    foxglove-stalled the same client, which stops reading after the first simulated second
+    view-idle        --view, no page open
     view             --view with a page that selects drone3 and asks for every LiDAR cloud, reading
-    view-stalled     the same page, which never reads
+    view-stalled     the same page, which stops reading after the first simulated second
 
 Run: python3 -m pytest benchmarks/test_bench_views.py --benchmark-only -s   (about 10 minutes on 2 cores)
 """
@@ -21,6 +26,7 @@ Run: python3 -m pytest benchmarks/test_bench_views.py --benchmark-only -s   (abo
 from __future__ import annotations
 
 import json
+import signal
 import statistics
 import subprocess
 import sys
@@ -35,8 +41,9 @@ from unetyemu_ecs import Simulation, load_world
 ROOT = Path(__file__).resolve().parent.parent
 CLIENT = Path(__file__).resolve().parent / "view_client.py"
 RUN_S = 10.0
+STALL_SETTLE_S = 5.0
 ROUNDS = 3
-VARIANTS = ("plain", "record", "foxglove", "foxglove-stalled", "view", "view-stalled")
+VARIANTS = ("plain", "record", "foxglove-idle", "foxglove", "foxglove-stalled", "view-idle", "view", "view-stalled")
 
 
 def run_variant(variant: str, scratch: Path) -> dict:
@@ -46,7 +53,7 @@ def run_variant(variant: str, scratch: Path) -> dict:
                "view": {"view": 0}}.get(kind, {})
     client = None
     with Simulation(load_world(ROOT / "worlds" / "urban_delivery.yaml"), **options) as sim:
-        if kind in ("foxglove", "view"):
+        if kind in ("foxglove", "view") and not variant.endswith("idle"):
             url = sim.transports[kind].url
             url = url if kind == "foxglove" else url.replace("http://", "ws://") + "ws"
             client = subprocess.Popen([sys.executable, str(CLIENT), kind, url]
@@ -55,6 +62,10 @@ def run_variant(variant: str, scratch: Path) -> dict:
             assert client.stdout.readline().strip() == "ready"
         try:
             sim.run(duration=1.0)
+            if variant.endswith("stalled"):
+                client.send_signal(signal.SIGUSR1)
+                assert client.stdout.readline().strip() == "stalled"
+                sim.run(duration=STALL_SETTLE_S)
             stats = sim.run(duration=RUN_S)
             sim.flush_transports(60.0)
             counters = sim.transport_counters().get(kind, {})

@@ -5,9 +5,10 @@
 
 ``foxglove`` (subprotocol foxglove.sdk.v1) subscribes to every advertised channel (as a Foxglove layout with 3D, Image and Plot
 panels over everything would); ``view`` selects drone3 and asks for every LiDAR cloud (the page's
-heaviest setting). Both print ``ready`` once subscribed. Without ``--stall`` they read and count
-everything that arrives; with it they never read again (a stalled client or browser tab). On SIGTERM
-they print ``{"messages": N, "bytes": B}`` and exit. A process of its own, as a real viewer is: a
+heaviest setting). Both print ``ready`` once subscribed, then read and count everything that arrives
+(subscribing to channels as they are advertised). With ``--stall`` they stop reading on SIGUSR1 and
+print ``stalled`` (a client or browser tab that froze after it had subscribed to everything). On
+SIGTERM they print ``{"messages": N, "bytes": B}`` and exit. A process of its own, as a real viewer is: a
 client thread inside the simulation's process would compete with it for the interpreter lock.
 """
 
@@ -53,6 +54,8 @@ def main() -> int:
         sys.exit(0)
 
     signal.signal(signal.SIGTERM, report)
+    freeze = []
+    signal.signal(signal.SIGUSR1, lambda *_: freeze.append(True))
     protocols = ["foxglove.sdk.v1"] if kind == "foxglove" else None        # foxglove-sdk 0.30 speaks only this
     with connect(url, subprotocols=protocols, max_size=None, open_timeout=60) as ws:
         subscriber = Subscriber(ws)
@@ -65,11 +68,15 @@ def main() -> int:
             ws.send(json.dumps({"type": "select", "vehicle": "drone3"}))
             ws.send(json.dumps({"type": "lidar", "mode": "all"}))
         print("ready", flush=True)
-        if stall:
-            while True:
-                time.sleep(3600)
         while True:
-            frame = ws.recv()
+            if stall and freeze:
+                print("stalled", flush=True)
+                while True:
+                    time.sleep(3600)
+            try:
+                frame = ws.recv(timeout=0.1)
+            except TimeoutError:
+                continue
             counts["messages"] += 1
             counts["bytes"] += len(frame)
             if kind == "foxglove" and isinstance(frame, str):

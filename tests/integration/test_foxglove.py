@@ -242,6 +242,9 @@ def test_nothing_is_serialised_before_anyone_subscribes(served):
     _, _, before = served
     assert before["messages_logged"] == 0 and before["clients_seen"] == 0
     assert before["messages_not_serialised"] > 0 and before["snapshots_offered"] == 73    # the world, 72 steps
+    # the server runs in a process of its own; of the samples only each topic's first (which advertises
+    # it) and the latched ones left the simulation's process, and no step that had nothing else
+    assert before["worker"]["samples_held_back"] > 100 and before["worker"]["snapshots_held_back"] > 30
 
 
 def test_lidar_and_camera_frames_arrive_as_cdr_with_physical_content(served):
@@ -369,6 +372,41 @@ def test_a_stalled_client_costs_the_simulation_nothing_and_gets_only_the_newest_
     assert counters["publish_errors"] == 0 and counters["errors"] == {}
 
 
+def test_a_lone_client_that_stops_reading_stops_what_the_simulation_sends_until_it_reads_again(served):
+    sim, fox, _ = served
+    before = server_subscriptions(sim)
+    with FoxgloveClient(fox.url, want=("*",), max_queue=1, rcvbuf_bytes=65536) as client:
+        client.wait_for(lambda: {IMAGE, DEPTH, LIDAR, "/clock"} <= set(client._subscribed.values()),
+                        "the client's subscriptions")
+        wait_taken(sim, before, client)
+        client.paused.set()
+
+        def run_until(connected: int, stalled: int, what: str) -> dict[str, Any]:
+            deadline = time.monotonic() + WAIT_S
+            while ((counters := sim.transport_counters()["foxglove"])["clients_connected"],
+                   counters["clients_stalled"]) != (connected, stalled):
+                assert time.monotonic() < deadline, f"the server never found {what}: {counters}"
+                run_flushed(sim, 0.1)
+            return counters
+
+        # its 64 KiB window fills at the first camera frames; STALL_S later the server knows (the
+        # connections of the clients before it may take a moment to close)
+        stalled = run_until(1, 1, "the client stalled")
+        assert stalled["stalls"] >= 1
+        run_flushed(sim, 1.0)                                   # LiDAR, cameras, IMUs, odometry, /clock ...
+        after = sim.transport_counters()["foxglove"]
+        held_back = after["worker"]["samples_held_back"] - stalled["worker"]["samples_held_back"]
+        assert held_back > 400                                  # none of them left the simulation's process
+        assert after["messages_logged"] - stalled["messages_logged"] < 0.02 * held_back   # latched status only
+        client.paused.clear()                                   # it reads again: everything flows again
+        run_until(1, 0, "the client reading again")
+        start_ns = round(sim.sim_time_s * 1e9)
+        run_flushed(sim, 0.5)
+        sync(sim, client)
+        images = [t for t, _ in client.messages[IMAGE] if t > start_ns]
+    assert len(images) >= 4                                     # 10 Hz for 0.5 s, from after it came back
+
+
 def test_garbage_from_a_client_is_answered_and_survived(served):
     sim, fox, _ = served
     with FoxgloveClient(fox.url) as bad:
@@ -383,7 +421,9 @@ def test_garbage_from_a_client_is_answered_and_survived(served):
         bad.send({"op": "subscribe", "subscriptions": "nonsense"})
         bad.send({"op": "getParameters", "parameterNames": ["world.seed"]})
         bad.wait_for(lambda: len(bad.statuses) >= 5, "status answers")
+        before = server_subscriptions(sim)
         bad.subscribe("/clock")                                                # and it still works
+        wait_taken(sim, before, bad)
         run_flushed(sim, 0.1)
         bad.wait_messages("/clock", 5)
     assert any("clientPublish" in s["message"] for s in bad.statuses)

@@ -303,13 +303,12 @@ def test_a_full_queue_drops_the_oldest_but_keeps_its_mission_status_changes():
     q.put(_snap(4, {"d1": {"state": "running", "step": 1}}))
     # THEN the two oldest were dropped and counted
     assert q.dropped == 2 and q.offered == 4
-    # AND the next snapshot taken carries the dropped ones' status changes (newer ones win)
-    seq, snap = q.get(0.0)
-    assert snap.step == 3 and dict(snap.mission_status) == {"d1": {"state": "running", "step": 0},
-                                                             "d2": {"state": "idle"}}
-    q.task_done(seq)
+    # AND the first snapshot taken carries the dropped ones' status changes (newer ones win)
+    (seq3, snap3), (seq4, snap4) = q.get_all(0.0)
+    assert snap3.step == 3 and dict(snap3.mission_status) == {"d1": {"state": "running", "step": 0},
+                                                               "d2": {"state": "idle"}}
+    assert snap4.step == 4 and dict(snap4.mission_status) == {"d1": {"state": "running", "step": 1}}
+    q.task_done(seq3)
     assert not q.wait_done(0.0)
-    seq, snap = q.get(0.0)
-    assert snap.step == 4 and dict(snap.mission_status) == {"d1": {"state": "running", "step": 1}}
-    q.task_done(seq)
-    assert q.wait_done(0.0) and q.get(0.0) is None
+    q.task_done(seq4)
+    assert q.wait_done(0.0) and q.get_all(0.0) == []

@@ -54,14 +54,6 @@ def test_a_car_has_no_battery_fields_and_nothing_non_finite_reaches_json():
     json.dumps(broken, allow_nan=False)                                       # valid JSON
 
 
-def test_rates_follow_sim_time_once_per_period_from_zero():
-    every = fx._Every(10.0)
-    times = [k / 240 for k in range(241)]                                     # 1 s of 240 Hz steps, both ends
-    due = [t for t in times if every.due(t)]
-    assert len(due) == 11 and due[0] == 0.0 and due[-1] == pytest.approx(1.0)
-    assert np.allclose(np.diff(due), 0.1)
-
-
 def test_ros2_schemas_are_the_jazzy_definitions_with_their_dependencies():
     schema = fx.ros2msg_schema("sensor_msgs/msg/Image")
     assert (schema.name, schema.encoding) == ("sensor_msgs/msg/Image", "ros2msg")

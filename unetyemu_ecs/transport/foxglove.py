@@ -33,14 +33,20 @@ clients that ask only for the old ``foxglove.websocket.v1`` are refused (HTTP 40
 server. The server advertises no capability: clients cannot publish, call services or set
 parameters, and whatever else they send is answered with a status message and ignored.
 
-Cost: nothing is serialised, and no sample's message is even built, for a topic nobody subscribes
-to (``Channel.has_sinks``), except the rare latched ones. The publishing thread takes the snapshots
-in small batches (BATCH_WAIT_S), so it wakes up a few dozen times a second rather than once per
-step. The server sends from its own threads (Rust, no GIL) through a bounded queue per client
-(CLIENT_BACKLOG messages, the oldest dropped when it is full), so a slow or stalled client costs
-neither the simulation loop nor the publishing thread anything and holds a bounded amount of
-memory; the publishing thread's own snapshot queue drops the oldest snapshots if it falls behind
-(counted: ``snapshots_dropped``).
+Cost: the server runs in a worker process of its own (:mod:`.worker`, a selective transport), so
+building, serialising and sending never take Python's interpreter lock from the simulation loop.
+The worker tells the simulation which topics are subscribed (``wanted``); the samples of the others
+never leave the simulation's process (each topic's first sample does, to advertise it, and every
+sample of the latched ones), the vehicle arrays cross only at VEHICLES_HZ and only while ``/vehicles``
+or a state is subscribed, and a step that carries nothing wanted is not sent at all: a server nobody
+watches costs the loop only its snapshot. In the worker no message is built for a topic nobody
+subscribes to (``Channel.has_sinks``). The server sends from its own threads (Rust) through a bounded
+queue per client (CLIENT_BACKLOG messages, the oldest dropped when it is full), so a slow client
+holds a bounded amount of memory. A client that stops reading (a frozen tab) is noticed by its
+receive queue (:mod:`.tcp_readers`, Linux): when every connected client has stopped, the simulation
+sends only the latched topics until one reads again (counters ``clients_stalled``, ``stalls``), so a
+stalled client costs the loop nothing. Snapshot queues on both sides drop the oldest when they fall
+behind (counted: ``snapshots_dropped``).
 """
 
 from __future__ import annotations
@@ -48,6 +54,7 @@ from __future__ import annotations
 import json
 import math
 import threading
+import time
 from collections import deque
 from collections.abc import Iterable
 from typing import Any
@@ -59,7 +66,11 @@ from foxglove.messages import (ArrowPrimitive, Color, CubePrimitive, Point3, Pos
 from foxglove.websocket import ServerListener
 
 from .api import Snapshot, TransportError, TransportOptions
+from .ros2.dds_backend import latched_depth
 from .ros2.transport import Ros2Transport
+from .snapshot import ticks_in_step
+from .tcp_readers import StalledReaders
+from .worker import ProcessTransport, Wants
 
 HOST = "127.0.0.1"                 # loopback only: the server has no authentication
 SERVER_NAME = "unetyemu"
@@ -74,11 +85,16 @@ STATE_HZ = 10.0                    # [Hz, sim time] /<v>/state
 # so that it wakes up once for several: measured on the delivery scenario (2 cores, no client), its CPU
 # time halves (0.9 -> 0.5 s per 10 simulated s) and its context switches drop from 32 000 to 9 000
 BATCH_WAIT_S = 0.02
+READERS_EVERY_S = 0.1             # [s, wall] how often the clients' receive queues are looked at (tcp_readers)
 WORLD_FRAME = "map"                # the root of /tf (sensors.tf)
 SCENE_TOPIC = "/scene"
 VEHICLES_TOPIC = "/vehicles"
 DEFAULT_HALF_EXTENTS_M = (0.3, 0.3, 0.1)
 DEFAULT_RGBA = (0.7, 0.7, 0.7, 1.0)
+# the snapshot arrays /vehicles and /<v>/state are made of (all that crosses to the worker of them)
+STATE_ARRAYS = ("pos_enu_m", "vel_enu_m_s", "quat_enu_flu_xyzw", "armed", "soc_frac", "power_w", "pack_voltage_v",
+                "pack_current_a", "energy_used_j", "remaining_time_s", "payload_kg", "low_battery", "flight_mode",
+                "nav_state", "landed_state", "mission_state", "mission_step")
 
 VEHICLE_STATE_SCHEMA: dict[str, Any] = {
     "title": "unetyemu.VehicleState",
@@ -215,20 +231,6 @@ def vehicle_state(snap: Snapshot, row: int) -> dict[str, Any]:
     return state
 
 
-class _Every:
-    """A sim-time rate limiter: ``due(t)`` is True once per period (the first time at t = 0)."""
-
-    def __init__(self, hz: float) -> None:
-        self.period_s = 1.0 / hz
-        self.next_s = 0.0
-
-    def due(self, time_s: float) -> bool:
-        if time_s + 1e-9 < self.next_s:
-            return False
-        self.next_s += (math.floor((time_s + 1e-9 - self.next_s) / self.period_s) + 1) * self.period_s
-        return True
-
-
 # -- the server ----------------------------------------------------------------------------------------
 class FoxgloveListener(ServerListener):
     """The server's callbacks (called on the server's threads): note who subscribes to what, and ask the
@@ -314,6 +316,14 @@ class FoxgloveBridge:
         channel = self._channels.get(topic)
         return channel is not None and channel.has_sinks()
 
+    def subscribed_topics(self) -> set[str]:
+        """The topics someone is subscribed to now (any thread)."""
+        return {topic for topic, channel in list(self._channels.items()) if channel.has_sinks()}
+
+    def latched_topics(self) -> frozenset[str]:
+        """The topics whose messages are kept for late subscribers (any thread)."""
+        return frozenset(list(self._latched))
+
     def publish(self, topic: str, msg: Any) -> None:
         """Log a ROS 2 message (rosbags) on ``topic`` as CDR, if anyone is subscribed or it is latched."""
         from ..sensors.messages import serialize
@@ -374,10 +384,14 @@ class FoxgloveTransport(Ros2Transport):
                                 tuple(float(v) for v in e.params.get("rgba", DEFAULT_RGBA)))
                        for e in world.entities if e.kind != "package"}
         self._listener = FoxgloveListener()
-        self._vehicles_every = _Every(VEHICLES_HZ)
-        self._state_every = _Every(STATE_HZ)
         self._not_built = 0                          # samples whose message was not even built: nobody subscribed
         self._stats: FoxgloveBridge | None = None   # the bridge, kept for the counters after stop()
+        self._readers: StalledReaders | None = None  # the clients' receive queues (publishing thread)
+        self._readers_next_s = 0.0
+        self._all_stalled = False
+        self.stalls = 0                              # times every connected client was found to have stopped reading
+        # set by the worker process (worker_main.WantsReporter): called when what wanted() says may have changed
+        self.on_wants_changed: Any = None
 
     # -- life cycle --------------------------------------------------------------------------------
     def _open_bridge(self) -> FoxgloveBridge:
@@ -392,7 +406,23 @@ class FoxgloveTransport(Ros2Transport):
             raise
         self.port, self.url = bridge.port, bridge.url
         self._stats = bridge
+        self._readers = StalledReaders(bridge.port)
         return bridge
+
+    def wanted(self) -> Wants:
+        """What of the snapshots this server needs now (it runs in a worker process, :mod:`.worker`): the
+        subscribed topics and the latched ones, every snapshot while ``/clock`` is subscribed, the arrays
+        while ``/vehicles`` or a state is. When every connected client has stopped reading (:mod:`.tcp_readers`)
+        only the latched topics: a stalled client costs the simulation nothing until it reads again."""
+        bridge = self.bridge
+        if bridge is None:
+            return Wants()
+        latched = bridge.latched_topics()
+        if self._all_stalled:
+            return Wants(latched)
+        subscribed = bridge.subscribed_topics()
+        arrays = VEHICLES_TOPIC in subscribed or any(_state_topic(name) in subscribed for name in self._looks)
+        return Wants(latched | subscribed, "/clock" in subscribed, arrays)
 
     # -- publishing thread -------------------------------------------------------------------------
     def _wants(self, topic: str) -> bool:
@@ -404,10 +434,12 @@ class FoxgloveTransport(Ros2Transport):
     def _publish_snapshot(self, snap: Snapshot) -> None:
         self.bridge.time_ns = int(round(snap.sim_time_s * 1e9))
         super()._publish_snapshot(snap)
-        t = snap.sim_time_s
-        if self._vehicles_every.due(t) and self.bridge.subscribed(VEHICLES_TOPIC):
+        if not snap.arrays:                          # the worker's snapshots carry them only when wanted
+            return
+        t, dt = snap.sim_time_s, snap.dt_s
+        if ticks_in_step(t, dt, VEHICLES_HZ) and self.bridge.subscribed(VEHICLES_TOPIC):
             self._guarded(VEHICLES_TOPIC, lambda: vehicles_update(snap, self.bridge.time_ns, self._looks))
-        if self._state_every.due(t):
+        if ticks_in_step(t, dt, STATE_HZ):
             for row, name in enumerate(snap.vehicles):
                 topic = _state_topic(name)
                 if self.bridge.subscribed(topic):
@@ -415,7 +447,9 @@ class FoxgloveTransport(Ros2Transport):
 
     def _idle(self) -> None:
         """Send the latched messages of the channels just subscribed to (the scene is built on the first),
-        then, if no snapshot is waiting, wait BATCH_WAIT_S for the next ones to gather."""
+        look whether the clients still read, say what is wanted now, then, if no snapshot is waiting,
+        wait BATCH_WAIT_S for the next ones to gather."""
+        self._watch_readers()
         for topic in _unique(self._listener.take_requests()):
             if self.bridge is None:
                 return
@@ -426,8 +460,22 @@ class FoxgloveTransport(Ros2Transport):
                 self.bridge.resend(topic)
             except Exception as exc:
                 self._publish_failed(topic, exc)
+        if self.on_wants_changed is not None:
+            self.on_wants_changed()
         if not len(self._queue):
             self._stop.wait(BATCH_WAIT_S)
+
+    def _watch_readers(self) -> None:
+        """Every READERS_EVERY_S: whether every connected client has stopped reading."""
+        now_s = time.monotonic()
+        if self._readers is None or now_s < self._readers_next_s:
+            return
+        self._readers_next_s = now_s + READERS_EVERY_S
+        self._readers.sample(now_s)
+        stalled = self._readers.all_stalled
+        if stalled and not self._all_stalled:
+            self.stalls += 1
+        self._all_stalled = stalled
 
     def _guarded(self, topic: str, encode: Any) -> None:
         """Log what ``encode()`` returns on ``topic``; a failure is counted, never raised."""
@@ -449,6 +497,9 @@ class FoxgloveTransport(Ros2Transport):
             "messages_resent": bridge.resent if bridge else 0,
             "messages_not_serialised": (bridge.skipped if bridge else 0) + self._not_built,
             "clients_seen": len(listener.clients),
+            "clients_connected": self._readers.connected if self._readers else None,
+            "clients_stalled": self._readers.stalled if self._readers else None,
+            "stalls": self.stalls,
             "subscriptions": listener.subscriptions,
             "unsubscriptions": listener.unsubscriptions,
         })
@@ -463,18 +514,24 @@ def _unique(items: Iterable[str]) -> list[str]:
     return list(dict.fromkeys(items))
 
 
-def create_foxglove_transport(world: Any, options: TransportOptions) -> FoxgloveTransport | None:
-    """The ``foxglove`` transport plugin's ``create``: a server when ``options.foxglove`` is a port.
-
-    It runs in the simulation's process, not in a worker process (:mod:`.worker`, as the recorder
-    does): a worker is sent every step's samples, pickled, whether anyone watches or not (measured on
-    the delivery scenario, 2 cores: 0.8 s of the sending thread's CPU per 5 simulated s, plus the
-    worker's own), while here nothing is built for a topic nobody subscribes to (the publishing
-    thread: 0.55 s per 10 simulated s without a client, 1.4 s with one subscribed to everything)."""
+def create_foxglove_transport(world: Any, options: TransportOptions) -> ProcessTransport | None:
+    """The ``foxglove`` transport plugin's ``create``: a server when ``options.foxglove`` is a port, run in a
+    worker process (:mod:`.worker`) as a selective transport. Building and serialising every subscribed
+    message in the simulation's process cost the delivery scenario about a tenth of its real-time factor
+    (2 cores, a client subscribed to everything); there the loop pays only for pickling the unbuilt
+    samples of the subscribed topics, and nothing of the topics nobody subscribes to."""
     port = getattr(options, "foxglove", None)
-    return FoxgloveTransport(world, int(port)) if port is not None else None
+    if port is None:
+        return None
+    return ProcessTransport("foxglove", f"{__name__}:foxglove_in_this_process", world, options, arrays=STATE_ARRAYS,
+                            queue_depth=QUEUE_DEPTH, keep=latched_depth, arrays_hz=VEHICLES_HZ)
 
 
-__all__ = ["CLIENT_BACKLOG", "FoxgloveBridge", "FoxgloveListener", "FoxgloveTransport", "SCENE_TOPIC", "VEHICLES_TOPIC",
-           "VEHICLE_STATE_SCHEMA", "create_foxglove_transport", "ros2msg_schema", "scene_update", "vehicle_state",
-           "vehicles_update"]
+def foxglove_in_this_process(world: Any, options: TransportOptions) -> FoxgloveTransport:
+    """The server itself (what the worker process runs)."""
+    return FoxgloveTransport(world, int(options.foxglove))
+
+
+__all__ = ["CLIENT_BACKLOG", "FoxgloveBridge", "FoxgloveListener", "FoxgloveTransport", "SCENE_TOPIC", "STATE_ARRAYS",
+           "VEHICLES_TOPIC", "VEHICLE_STATE_SCHEMA", "create_foxglove_transport", "foxglove_in_this_process",
+           "ros2msg_schema", "scene_update", "vehicle_state", "vehicles_update"]

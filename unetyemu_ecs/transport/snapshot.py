@@ -12,6 +12,7 @@ blocks) and its thread takes from; :meth:`SnapshotQueue.wait_done` is what ``flu
 
 from __future__ import annotations
 
+import math
 import threading
 from collections import deque
 from collections.abc import Callable, Sequence
@@ -179,22 +180,21 @@ class SnapshotQueue:
             self._q.append((self._offered, snap))
         self._ready.set()
 
-    def get(self, timeout_s: float | None = None) -> tuple[int, Snapshot] | None:
-        """The oldest queued snapshot and its sequence number, waiting up to ``timeout_s``; None if none."""
+    def get_all(self, timeout_s: float | None = None) -> list[tuple[int, Snapshot]]:
+        """Every queued snapshot with its sequence number, oldest first, waiting up to ``timeout_s`` for
+        one; [] if none came. Taking them together costs the consumer one lock and one wake-up for all."""
         if not self._ready.wait(timeout_s):
-            return None
+            return []
         with self._lock:
-            if not self._q:
-                self._ready.clear()
-                return None
-            seq, snap = self._q.popleft()
-            if not self._q:
-                self._ready.clear()
-            if self._carry:
+            items = list(self._q)
+            self._q.clear()
+            self._ready.clear()
+            if items and self._carry:
                 carried, self._carry = self._carry, {}
+                seq, snap = items[0]
                 carried.update(snap.mission_status)
-                snap = _with_status(snap, carried)
-        return seq, snap
+                items[0] = (seq, _with_status(snap, carried))
+        return items
 
     def task_done(self, seq: int) -> None:
         """The consumer finished snapshot ``seq`` (and so everything before it)."""
@@ -213,6 +213,15 @@ class SnapshotQueue:
         self._ready.set()
 
 
+def ticks_in_step(time_s: float, dt_s: float, hz: float) -> bool:
+    """Whether a clock ticking at ``hz`` (at 0, 1/hz, 2/hz ... s of sim time) ticks in the step that ended
+    at ``time_s`` and lasted ``dt_s`` (in (time_s - dt_s, time_s]): the step a sensor of that rate would
+    measure in. Stateless, so two threads or processes that see different subsets of the snapshots agree
+    on every one they both see."""
+    period_s = 1.0 / hz
+    return math.floor((time_s + 1e-9) / period_s) > math.floor((time_s - dt_s + 1e-9) / period_s)
+
+
 def _with_status(snap: Snapshot, status: dict[str, Any]) -> Snapshot:
     from dataclasses import replace
 
@@ -222,15 +231,20 @@ def _with_status(snap: Snapshot, status: dict[str, Any]) -> Snapshot:
 def run_consumer(queue: SnapshotQueue, handle: Callable[[Snapshot], None], stop: threading.Event,
                  idle: Callable[[], None] | None = None, poll_s: float = 0.05) -> None:
     """A transport thread's loop: hand each snapshot to ``handle`` until ``stop`` is set, calling
-    ``idle`` (timers, retries) at least every ``poll_s`` seconds."""
+    ``idle`` (timers, retries, batching naps) after each batch of snapshots taken together and at least
+    every ``poll_s`` seconds."""
     while not stop.is_set():
-        item = queue.get(poll_s)
-        if item is not None:
-            seq, snap = item
-            try:
+        items = queue.get_all(poll_s)
+        last = 0
+        try:
+            for seq, snap in items:
+                if stop.is_set():
+                    break
                 handle(snap)
-            finally:
-                queue.task_done(seq)
+                last = seq
+        finally:
+            if last:
+                queue.task_done(last)
         if idle is not None:
             idle()
 
@@ -254,4 +268,4 @@ def stop_consumer(queue: SnapshotQueue, stop: threading.Event, thread: threading
 
 
 __all__ = ["IDLE_STATUS", "SNAPSHOT_ARRAYS", "SnapshotBuilder", "SnapshotQueue", "TransportSnapshotSystem",
-           "run_consumer", "start_consumer", "stop_consumer"]
+           "run_consumer", "start_consumer", "stop_consumer", "ticks_in_step"]

@@ -17,12 +17,23 @@ command results (the worker appends them to lists of its own, so the cursors wor
 :class:`~.api.Snapshot`), and the arrays named by ``arrays``. Inner transports are output-only: the
 worker refuses command submissions (a transport that takes commands runs in the simulation's process).
 
+A *selective* inner transport (one whose consumers subscribe per topic, as Foxglove's do) says what it
+wants with a :class:`Wants` (its ``wanted()``; the worker sends it before ``ready``, before every
+``flushed`` and whenever the transport calls ``on_wants_changed``). Then only these cross: the
+samples of the topics it wants, the first sample of every topic (so that it can advertise the topic),
+every sample of the topics ``keep`` names (latched ones), the arrays only while it wants them and at
+most ``arrays_hz`` times a simulated second, and a snapshot only when it carries one of those, new
+events or results, a mission status, or when the transport wants every snapshot (``/clock``). What
+stays behind is counted (``samples_held_back``, ``snapshots_held_back``): a server nobody watches
+costs the loop the snapshot and a few microseconds of this thread.
+
 Frames on both pipes: 4-byte little-endian length, then a pickle. To the worker: ``("start",
 factory, world, options, vehicles, kinds, first)``, ``("flush", n, timeout_s)``,
 ``("stop", timeout_s)``, and the snapshots in batches, ``("snaps", [slim, ...])``: one frame for
 all that gathered while the send thread napped (fewer wake-ups and writes, so fewer times the loop
 waits for the interpreter lock). Back: ``("ready", info)`` or ``("error", text)`` after start,
-``("flushed", n, ok, counters)``, ``("stopped", counters)``. The worker's stderr is this process's,
+``("flushed", n, ok, counters)``, ``("stopped", counters)``, and from a selective transport
+``("wants", Wants)`` at any time. The worker's stderr is this process's,
 so its warnings and tracebacks land in the same log.
 """
 
@@ -35,11 +46,11 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Callable, Sequence
+from typing import Any, NamedTuple
 
 from .api import CommandPort, Snapshot, TransportError, TransportOptions
-from .snapshot import SnapshotQueue, start_consumer, stop_consumer
+from .snapshot import SnapshotQueue, start_consumer, stop_consumer, ticks_in_step
 
 SEND_QUEUE_DEPTH = 64          # snapshots waiting to be sent (default; a recorder asks for as many as it keeps)
 # when the queue is empty, the send thread waits this long [s, wall] before taking the next snapshots, so that
@@ -71,9 +82,25 @@ def read_frame(stream: Any) -> Any:
     return pickle.loads(data)
 
 
-def slim(snap: Snapshot, arrays: Sequence[str], events_from: int, results_from: int) -> tuple:
-    """What crosses to the worker of one snapshot: only the arrays named, only new events and results."""
-    return (snap.step, snap.sim_time_s, snap.dt_s, {k: snap.arrays[k] for k in arrays}, tuple(snap.sensors),
+class Wants(NamedTuple):
+    """What a selective transport in a worker wants of each snapshot (see the module docstring).
+
+    topics : the sample topics to send (besides each topic's first sample and the ``keep`` topics)
+    every_snapshot : send every snapshot, even one that carries nothing else (it publishes from each)
+    arrays : send the named arrays (at most ``arrays_hz`` times a simulated second)
+    """
+
+    topics: frozenset[str] = frozenset()
+    every_snapshot: bool = False
+    arrays: bool = False
+
+
+def slim(snap: Snapshot, arrays: Sequence[str], events_from: int, results_from: int,
+         sensors: Sequence[Any] | None = None) -> tuple:
+    """What crosses to the worker of one snapshot: only the arrays named, only new events and results,
+    the ``sensors`` given (default: all of the snapshot's)."""
+    return (snap.step, snap.sim_time_s, snap.dt_s, {k: snap.arrays[k] for k in arrays},
+            tuple(snap.sensors if sensors is None else sensors),
             list(snap.events[events_from:snap.events_end]), list(snap.results[results_from:snap.results_end]),
             {k: dict(v) for k, v in snap.mission_status.items()})
 
@@ -87,15 +114,29 @@ class ProcessTransport:
     arrays : the snapshot arrays the real transport reads (none for a recorder of sensor messages)
     queue_depth : snapshots waiting to be sent before the oldest are dropped (a run faster than the
         worker, or the send thread's 20 ms naps, must not lose what a recorder is meant to keep)
+    keep : for a selective transport, the topics whose every sample crosses whatever it wants (latched
+        topics: a late subscriber gets them from the worker); None: none
+    arrays_hz : for a selective transport, the rate [Hz, sim time] at which the arrays cross while it wants
+        them: in the steps where a clock of that rate ticks (:func:`~.snapshot.ticks_in_step`)
     """
 
     def __init__(self, name: str, factory: str, world: Any, options: TransportOptions,
-                 arrays: Sequence[str] = (), queue_depth: int = SEND_QUEUE_DEPTH) -> None:
+                 arrays: Sequence[str] = (), queue_depth: int = SEND_QUEUE_DEPTH,
+                 keep: Callable[[str], Any] | None = None, arrays_hz: float = 240.0) -> None:
         self.name = name
         self.factory = factory
         self._world = world
         self._options = options
         self._arrays = tuple(arrays)
+        self._keep = keep
+        self._arrays_hz = float(arrays_hz)
+        self._wants: Wants | None = None              # None: everything (not a selective transport)
+        # selection (simulation thread): topics of which a sample was queued, keep(topic) per topic, the
+        # event and result cursors of the last snapshot queued
+        self._topics_offered: set[str] = set()
+        self._kept: dict[str, bool] = {}
+        self._events_offered = 0
+        self._results_offered = 0
         self._queue = SnapshotQueue(queue_depth)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -112,11 +153,16 @@ class ProcessTransport:
         self.info: dict[str, Any] = {}               # what the worker's transport said at start (url ...)
         self.bytes_sent = 0
         self.send_errors = 0
+        self.samples_held_back = 0                   # samples a selective transport did not want
+        self.snapshots_held_back = 0                 # snapshots that carried nothing it wanted
         self.error = ""
 
     # -- life cycle (simulation thread) --------------------------------------------------------
     def start(self, port: CommandPort, first: Snapshot) -> None:
-        env = dict(os.environ, OPENBLAS_NUM_THREADS=os.environ.get("OPENBLAS_NUM_THREADS", "1"))
+        env = dict(os.environ, OPENBLAS_NUM_THREADS=os.environ.get("OPENBLAS_NUM_THREADS", "1"),
+                   # what this process can import the worker can too (plugins on a path a script added: the
+                   # world it is sent names their classes)
+                   PYTHONPATH=os.pathsep.join(p for p in [*sys.path, os.environ.get("PYTHONPATH", "")] if p))
         try:
             self._proc = subprocess.Popen([sys.executable, "-m", "unetyemu_ecs.transport.worker_main"],
                                           stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
@@ -126,6 +172,7 @@ class ProcessTransport:
         self._reader.start()
         first_slim = slim(first, self._arrays, 0, 0)
         self._events_sent, self._results_sent = first.events_end, first.results_end
+        self._events_offered, self._results_offered = first.events_end, first.results_end
         try:
             self._send(("start", self.factory, self._world, self._options, first.vehicles, first.kinds, first_slim))
         except OSError as exc:
@@ -141,6 +188,16 @@ class ProcessTransport:
                                       f"unetyemu-{self.name}-send")
 
     def offer(self, snapshot: Snapshot) -> None:
+        """Queue ``snapshot``; for a selective transport only what it wants of it, and nothing when that is
+        nothing (decided here, on the simulation thread, in a few microseconds: a send thread woken for
+        every step to find nothing to send would take the interpreter lock from the loop each time)."""
+        wants = self._wants
+        if wants is not None:
+            selected = self._selected(snapshot, wants)
+            if selected is None:
+                self.snapshots_held_back += 1
+                return
+            snapshot = selected
         self._queue.put(snapshot)
 
     def flush(self, timeout_s: float = 2.0) -> bool:
@@ -194,21 +251,54 @@ class ProcessTransport:
         if proc is not None and proc.poll() not in (None, 0) and not self.error:
             self.error = f"the worker process ended with exit status {proc.returncode}"
         counters = dict(self._counters)
-        counters["snapshots_offered"] = self._queue.offered
+        # the first went with "start"; a selective transport's held-back snapshots were offered too
+        counters["snapshots_offered"] = self._queue.offered + self.snapshots_held_back + (self.info != {})
         counters["snapshots_dropped"] = self._queue.dropped + int(counters.get("snapshots_dropped", 0))
         counters["worker"] = {"pid": self._proc.pid if self._proc is not None else None,
                               "bytes_sent": self.bytes_sent, "send_errors": self.send_errors,
                               **({"error": self.error} if self.error else {})}
+        if self._wants is not None:
+            counters["worker"].update(samples_held_back=self.samples_held_back,
+                                      snapshots_held_back=self.snapshots_held_back)
         return counters
+
+    # -- the send thread -------------------------------------------------------------------------
+    def _selected(self, snap: Snapshot, wants: Wants) -> Snapshot | None:
+        """What a selective transport gets of ``snap`` (see the module docstring): a snapshot with only those
+        samples, and without arrays where it gets none; None: nothing (simulation thread)."""
+        sensors = []
+        for sample in snap.sensors:
+            topic = sample.topic
+            if topic in wants.topics or topic not in self._topics_offered or self._kept_topic(topic):
+                self._topics_offered.add(topic)
+                sensors.append(sample)
+            else:
+                self.samples_held_back += 1
+        arrays = wants.arrays and ticks_in_step(snap.sim_time_s, snap.dt_s, self._arrays_hz)
+        news = snap.events_end > self._events_offered or snap.results_end > self._results_offered
+        if not (sensors or arrays or wants.every_snapshot or news or snap.mission_status):
+            return None
+        self._events_offered, self._results_offered = snap.events_end, snap.results_end
+        return Snapshot(step=snap.step, sim_time_s=snap.sim_time_s, dt_s=snap.dt_s, vehicles=snap.vehicles,
+                        kinds=snap.kinds, arrays=snap.arrays if arrays else {}, sensors=tuple(sensors),
+                        events=snap.events, events_end=snap.events_end, results=snap.results,
+                        results_end=snap.results_end, mission_status=snap.mission_status, params=snap.params,
+                        params_version=snap.params_version)
 
     # -- the send thread -------------------------------------------------------------------------
     def _send_snapshot(self, snap: Snapshot) -> None:
         if self.send_errors:                        # the worker is gone: drop (counted once)
             return
-        item = slim(snap, self._arrays, self._events_sent, self._results_sent)
+        item = slim(snap, self._arrays if snap.arrays else (), self._events_sent, self._results_sent)
         self._events_sent, self._results_sent = snap.events_end, snap.results_end
         with self._write_lock:
             self._batch.append(item)
+
+    def _kept_topic(self, topic: str) -> bool:
+        kept = self._kept.get(topic)
+        if kept is None:
+            kept = self._kept[topic] = self._keep is not None and bool(self._keep(topic))
+        return kept
 
     def _gather(self) -> None:
         """Between snapshots: once the queue is empty, send what was gathered as one frame, then nap."""
@@ -255,6 +345,9 @@ class ProcessTransport:
                     self.error = f"unreadable reply from the worker: {exc}"
                 break
             kind = reply[0]
+            if kind == "wants":
+                self._wants = Wants(*reply[1])
+                continue
             if kind in ("flushed", "stopped"):
                 self._counters = dict(reply[-1])
             key = ("flushed", reply[1]) if kind == "flushed" else ("start" if kind in ("ready", "error") else kind)
@@ -271,4 +364,4 @@ class ProcessTransport:
             return self._replies.pop(key, None)
 
 
-__all__ = ["ProcessTransport", "read_frame", "slim", "write_frame"]
+__all__ = ["ProcessTransport", "Wants", "read_frame", "slim", "write_frame"]

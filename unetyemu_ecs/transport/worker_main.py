@@ -4,7 +4,8 @@ It reads frames from stdin (see :mod:`.worker`), builds the real transport with 
 given, and feeds it the snapshots rebuilt from what crossed: the events and command results arrive
 as increments and are appended to this process's own lists, so ``snapshot.events[cursor:events_end]``
 reads as in the simulation's process. Replies go to stdout (nothing else may write there: print()
-and warnings go to stderr). It ends when stdin closes or after a ``stop``.
+and warnings go to stderr), one writer at a time: a selective transport's thread writes its
+``wants`` there too (:class:`WantsReporter`). It ends when stdin closes or after a ``stop``.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from __future__ import annotations
 import os
 import signal
 import sys
+import threading
 from importlib import import_module
 from typing import Any
 
@@ -46,6 +48,36 @@ class SnapshotRebuilder:
                         results=self.results, results_end=len(self.results), mission_status=mission_status)
 
 
+class Replies:
+    """The reply pipe, written by the serve loop and by a selective transport's thread (one at a time)."""
+
+    def __init__(self, out_fd: int) -> None:
+        self.out_fd = out_fd
+        self._lock = threading.Lock()
+
+    def write(self, obj: Any) -> None:
+        with self._lock:
+            write_frame(self.out_fd, obj)
+
+
+class WantsReporter:
+    """Sends a selective transport's ``wanted()`` (see :class:`~.worker.Wants`) when it differs from what
+    was sent last; the transport calls it (as its ``on_wants_changed``) whenever its consumers change."""
+
+    def __init__(self, transport: Any, replies: Replies) -> None:
+        self.transport = transport
+        self.replies = replies
+        self._sent: tuple | None = None
+        self._lock = threading.Lock()
+
+    def __call__(self, force: bool = False) -> None:
+        with self._lock:
+            wants = tuple(self.transport.wanted())
+            if force or wants != self._sent:
+                self.replies.write(("wants", wants))
+                self._sent = wants
+
+
 def _build(factory: str, world: Any, options: Any) -> Any:
     module, _, attr = factory.partition(":")
     fn: Any = import_module(module)
@@ -59,7 +91,9 @@ def _build(factory: str, world: Any, options: Any) -> Any:
 
 def serve(inp: Any, out_fd: int) -> int:
     """Run one transport from the frames on ``inp``, replying on ``out_fd``; returns the exit status."""
+    replies = Replies(out_fd)
     transport = None
+    report_wants: WantsReporter | None = None
     rebuild: SnapshotRebuilder | None = None
     stop_timeout_s = 2.0
     try:
@@ -74,21 +108,27 @@ def serve(inp: Any, out_fd: int) -> int:
                 rebuild = SnapshotRebuilder(vehicles, kinds)
                 try:
                     transport = _build(factory, world, options)
+                    if callable(getattr(transport, "wanted", None)):      # selective: says what it wants
+                        report_wants = transport.on_wants_changed = WantsReporter(transport, replies)
                     transport.start(RefusingPort(), rebuild(first))
+                    if report_wants is not None:
+                        report_wants(force=True)
                 except Exception as exc:         # reported to the simulation, which raises it at start
                     text = str(exc) if isinstance(exc, TransportError) else f"{type(exc).__name__}: {exc}"
-                    write_frame(out_fd, ("error", text))
+                    replies.write(("error", text))
                     if transport is not None:
                         transport.stop()
                     return 1
                 info = {k: getattr(transport, k) for k in ("url", "port", "path") if hasattr(transport, k)}
-                write_frame(out_fd, ("ready", {k: (str(v) if k == "path" else v) for k, v in info.items()}))
+                replies.write(("ready", {k: (str(v) if k == "path" else v) for k, v in info.items()}))
             elif kind == "snaps" and transport is not None and rebuild is not None:
                 for item in frame[1]:
                     transport.offer(rebuild(item))
             elif kind == "flush" and transport is not None:
                 ok = transport.flush(frame[2])
-                write_frame(out_fd, ("flushed", frame[1], ok, transport.counters()))
+                if report_wants is not None:        # what it wants now reaches the simulation before this flush ends
+                    report_wants()
+                replies.write(("flushed", frame[1], ok, transport.counters()))
             elif kind == "stop":
                 stop_timeout_s = frame[1]
                 break
@@ -96,7 +136,7 @@ def serve(inp: Any, out_fd: int) -> int:
         if transport is not None:
             transport.stop(stop_timeout_s)
             try:
-                write_frame(out_fd, ("stopped", transport.counters()))
+                replies.write(("stopped", transport.counters()))
             except OSError:
                 pass
     return 0

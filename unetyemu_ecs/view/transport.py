@@ -84,12 +84,13 @@ class LiveSource:
         """A live run has no player: play, pause and seek are for recordings."""
 
     def poll(self, now_s: float) -> Update | None:
-        while (item := self.queue.get(0)) is not None:
-            seq, snap = item
-            try:
+        items = self.queue.get_all(0)
+        try:
+            for _, snap in items:
                 self._absorb(snap)
-            finally:
-                self.queue.task_done(seq)
+        finally:
+            if items:
+                self.queue.task_done(items[-1][0])
         snap = self._snap
         if snap is None:
             return None
