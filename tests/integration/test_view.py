@@ -146,7 +146,7 @@ class TestLive:
             with pytest.raises(urllib.error.HTTPError) as e:
                 urllib.request.urlopen(base + path, timeout=WAIT_S)
             assert e.value.code == code, path
-        port = live.view.server.port
+        port = live.view.port
         with pytest.raises(urllib.error.HTTPError) as e:          # another name for this host (DNS rebinding)
             urllib.request.urlopen(urllib.request.Request(base, headers={"Host": f"example.com:{port}"}), timeout=WAIT_S)
         assert e.value.code == 421
@@ -225,7 +225,8 @@ class TestLive:
 
 
 def _stalled_page(port: int) -> socket.socket:
-    """A WebSocket client that completes the handshake and then never reads another byte."""
+    """A WebSocket client that completes the handshake, asks for drone3's camera and every LiDAR cloud, and
+    then never reads another byte."""
     s = socket.socket()
     s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
     s.connect(("127.0.0.1", port))
@@ -235,21 +236,34 @@ def _stalled_page(port: int) -> socket.socket:
     while b"\r\n\r\n" not in head:
         head += s.recv(1)
     assert head.startswith(b"HTTP/1.1 101"), head
+    for ask in ({"type": "select", "vehicle": "drone3"}, {"type": "lidar", "mode": "all"}):   # the heaviest page
+        payload, mask = json.dumps(ask).encode(), os.urandom(4)
+        s.sendall(bytes([0x81, 0x80 | len(payload)]) + mask + bytes(b ^ mask[i % 4] for i, b in enumerate(payload)))
     return s
 
 
 def test_a_page_that_never_reads_does_not_stop_the_run():
     with Simulation(load_world(WORLDS / "urban_delivery.yaml"), view=0) as sim:
         view = sim.transports["view"]
-        stalled = [_stalled_page(view.server.port) for _ in range(2)]
+        stalled = [_stalled_page(view.port) for _ in range(2)]
         try:
             sim.run(duration=4.0)                                     # as fast as it can
             assert sim.sim_time_s == pytest.approx(4.0, abs=0.01)
             counters = view.counters()
             assert counters["clients"] == 2
             # each page holds at most one message per channel: nothing piles up for a page that does not read
-            for page in list(view.server._pages):
-                assert len(page.slots) <= 3
+            assert counters["messages_waiting"] <= 2 * 3
+            # and the images and clouds no page asked for stayed in the simulation's process
+            assert counters["worker"]["samples_held_back"] > 0
+            # once their sockets' buffers are full and they took no state for a second, nothing is sent for them
+            deadline = time.monotonic() + WAIT_S
+            while (counters := view.counters())["clients_watching"]:
+                assert time.monotonic() < deadline, counters
+                sim.run(duration=0.25)
+            sim.run(duration=1.0)
+            after = view.counters()
+            held_back = after["worker"]["snapshots_held_back"] - counters["worker"]["snapshots_held_back"]
+            assert held_back >= 230                                   # of the 240 steps (a mission status crosses)
             with connect(view.url.replace("http://", "ws://") + "ws", max_size=None) as ws:  # others are served
                 receive(ws, lambda g: g["state"])
         finally:

@@ -17,10 +17,11 @@ command results (the worker appends them to lists of its own, so the cursors wor
 :class:`~.api.Snapshot`), and the arrays named by ``arrays``. Inner transports are output-only: the
 worker refuses command submissions (a transport that takes commands runs in the simulation's process).
 
-A *selective* inner transport (one whose consumers subscribe per topic, as Foxglove's do) says what it
+A *selective* inner transport (one whose consumers choose what they get: Foxglove's subscribe per topic,
+the web view's pages pick a vehicle and its LiDAR) says what it
 wants with a :class:`Wants` (its ``wanted()``; the worker sends it before ``ready``, before every
 ``flushed`` and whenever the transport calls ``on_wants_changed``). Then only these cross: the
-samples of the topics it wants, the first sample of every topic (so that it can advertise the topic),
+samples of the topics (or vehicles' sensors) it wants, the first sample of every topic (so that it can advertise the topic),
 every sample of the topics ``keep`` names (latched ones), the arrays only while it wants them and at
 most ``arrays_hz`` times a simulated second, and a snapshot only when it carries one of those, new
 events or results, a mission status, or when the transport wants every snapshot (``/clock``). What
@@ -29,10 +30,10 @@ costs the loop the snapshot and a few microseconds of this thread.
 
 Frames on both pipes: 4-byte little-endian length, then a pickle. To the worker: ``("start",
 factory, world, options, vehicles, kinds, first)``, ``("flush", n, timeout_s)``,
-``("stop", timeout_s)``, and the snapshots in batches, ``("snaps", [slim, ...])``: one frame for
+``("counters", n)``, ``("stop", timeout_s)``, and the snapshots in batches, ``("snaps", [slim, ...])``: one frame for
 all that gathered while the send thread napped (fewer wake-ups and writes, so fewer times the loop
 waits for the interpreter lock). Back: ``("ready", info)`` or ``("error", text)`` after start,
-``("flushed", n, ok, counters)``, ``("stopped", counters)``, and from a selective transport
+``("flushed", n, ok, counters)``, ``("counters", n, counters)``, ``("stopped", counters)``, and from a selective transport
 ``("wants", Wants)`` at any time. The worker's stderr is this process's,
 so its warnings and tracebacks land in the same log.
 """
@@ -57,6 +58,7 @@ SEND_QUEUE_DEPTH = 64          # snapshots waiting to be sent (default; a record
 # it wakes (and takes the interpreter lock from the loop) once for several steps instead of once for each
 BATCH_WAIT_S = 0.02
 START_TIMEOUT_S = 60.0         # importing the worker's modules (numpy, rosbags ...) on a busy machine
+COUNTERS_WAIT_S = 2.0          # how long counters() waits for the worker's figures
 _LEN = struct.Struct("<I")
 
 
@@ -87,12 +89,14 @@ class Wants(NamedTuple):
 
     topics : the sample topics to send (besides each topic's first sample and the ``keep`` topics)
     every_snapshot : send every snapshot, even one that carries nothing else (it publishes from each)
-    arrays : send the named arrays (at most ``arrays_hz`` times a simulated second)
+    arrays : send the named arrays (at ``arrays_hz``, and with every sample sent if ``arrays_with_samples``)
+    samples : (vehicle, sensor key) of more samples to send, whatever their topic
     """
 
     topics: frozenset[str] = frozenset()
     every_snapshot: bool = False
     arrays: bool = False
+    samples: frozenset[tuple[str, str]] = frozenset()
 
 
 def slim(snap: Snapshot, arrays: Sequence[str], events_from: int, results_from: int,
@@ -118,11 +122,14 @@ class ProcessTransport:
         topics: a late subscriber gets them from the worker); None: none
     arrays_hz : for a selective transport, the rate [Hz, sim time] at which the arrays cross while it wants
         them: in the steps where a clock of that rate ticks (:func:`~.snapshot.ticks_in_step`)
+    arrays_with_samples : for a selective transport, the arrays also cross (while wanted) with every step
+        that carries a sample (a LiDAR cloud drawn in the world frame needs the pose of its own step)
     """
 
     def __init__(self, name: str, factory: str, world: Any, options: TransportOptions,
                  arrays: Sequence[str] = (), queue_depth: int = SEND_QUEUE_DEPTH,
-                 keep: Callable[[str], Any] | None = None, arrays_hz: float = 240.0) -> None:
+                 keep: Callable[[str], Any] | None = None, arrays_hz: float = 240.0,
+                 arrays_with_samples: bool = False) -> None:
         self.name = name
         self.factory = factory
         self._world = world
@@ -130,6 +137,7 @@ class ProcessTransport:
         self._arrays = tuple(arrays)
         self._keep = keep
         self._arrays_hz = float(arrays_hz)
+        self._arrays_with_samples = arrays_with_samples
         self._wants: Wants | None = None              # None: everything (not a selective transport)
         # selection (simulation thread): topics of which a sample was queued, keep(topic) per topic, the
         # event and result cursors of the last snapshot queued
@@ -149,6 +157,7 @@ class ProcessTransport:
         self._events_sent = 0
         self._results_sent = 0
         self._flushes = 0
+        self._asked = 0                              # counters requests sent
         self._counters: dict[str, Any] = {}          # the worker's transport's, newest
         self.info: dict[str, Any] = {}               # what the worker's transport said at start (url ...)
         self.bytes_sent = 0
@@ -247,9 +256,18 @@ class ProcessTransport:
         raise AttributeError(f"{type(self).__name__} {self.__dict__.get('name')!r} has no attribute {name!r}")
 
     def counters(self) -> dict[str, Any]:
+        """The worker's transport's counters, asked for now (at most COUNTERS_WAIT_S; else the newest it sent
+        with a flush or at its stop), with this side's: snapshots offered and dropped, the pipe's figures."""
         proc = self._proc
         if proc is not None and proc.poll() not in (None, 0) and not self.error:
             self.error = f"the worker process ended with exit status {proc.returncode}"
+        if proc is not None and self._alive():
+            self._asked += 1
+            try:
+                self._send(("counters", self._asked))
+                self._wait_reply(("counters", self._asked), COUNTERS_WAIT_S)    # its reader keeps what came
+            except OSError:
+                pass
         counters = dict(self._counters)
         # the first went with "start"; a selective transport's held-back snapshots were offered too
         counters["snapshots_offered"] = self._queue.offered + self.snapshots_held_back + (self.info != {})
@@ -269,12 +287,14 @@ class ProcessTransport:
         sensors = []
         for sample in snap.sensors:
             topic = sample.topic
-            if topic in wants.topics or topic not in self._topics_offered or self._kept_topic(topic):
+            if (topic in wants.topics or topic not in self._topics_offered or self._kept_topic(topic)
+                    or (sample.vehicle, sample.sensor) in wants.samples):
                 self._topics_offered.add(topic)
                 sensors.append(sample)
             else:
                 self.samples_held_back += 1
-        arrays = wants.arrays and ticks_in_step(snap.sim_time_s, snap.dt_s, self._arrays_hz)
+        arrays = wants.arrays and ((self._arrays_with_samples and bool(sensors))
+                                   or ticks_in_step(snap.sim_time_s, snap.dt_s, self._arrays_hz))
         news = snap.events_end > self._events_offered or snap.results_end > self._results_offered
         if not (sensors or arrays or wants.every_snapshot or news or snap.mission_status):
             return None
@@ -348,9 +368,10 @@ class ProcessTransport:
             if kind == "wants":
                 self._wants = Wants(*reply[1])
                 continue
-            if kind in ("flushed", "stopped"):
+            if kind in ("flushed", "stopped", "counters"):
                 self._counters = dict(reply[-1])
-            key = ("flushed", reply[1]) if kind == "flushed" else ("start" if kind in ("ready", "error") else kind)
+            key = ((kind, reply[1]) if kind in ("flushed", "counters")
+                   else ("start" if kind in ("ready", "error") else kind))
             with self._replied:
                 self._replies[key] = reply
                 self._replied.notify_all()

@@ -129,6 +129,8 @@ def serve(inp: Any, out_fd: int) -> int:
                 if report_wants is not None:        # what it wants now reaches the simulation before this flush ends
                     report_wants()
                 replies.write(("flushed", frame[1], ok, transport.counters()))
+            elif kind == "counters" and transport is not None:
+                replies.write(("counters", frame[1], transport.counters()))
             elif kind == "stop":
                 stop_timeout_s = frame[1]
                 break

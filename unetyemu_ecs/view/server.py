@@ -23,7 +23,7 @@ import logging
 import mimetypes
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
@@ -35,6 +35,7 @@ STATIC_DIR = Path(__file__).resolve().parent / "static"
 HOST = "127.0.0.1"
 CLOSE_TIMEOUT_S = 1.0             # a page that does not answer the closing handshake is cut off after this
 STOP_WAIT_S = 1.5
+STALL_S = 1.0                     # [s, wall] a page that took no state for this long is stalled (demand)
 MAX_ERRORS_KEPT = 10
 _CONTENT_TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=utf-8",
                   ".mjs": "text/javascript; charset=utf-8", ".css": "text/css; charset=utf-8",
@@ -84,11 +85,16 @@ class _Page:
         self.lidar_mode = "selected"
         self.seen: dict[str, int] = {}                 # channel -> seq of the last frame put in its slot
         self.greeted = False                           # the scene and the mesh are sent
+        self.state_sent_s = 0.0                        # [s, monotonic] when it last took a state
 
     @property
     def ready(self) -> bool:
         """It has taken the last state: it is keeping up (a page still busy with the scene is not)."""
         return self.greeted and "state" not in self.slots
+
+    def watching(self, now_s: float) -> bool:
+        """It took a state within the last STALL_S seconds (or has taken the last one): not stalled."""
+        return self.greeted and ("state" not in self.slots or now_s - self.state_sent_s < STALL_S)
 
     def put(self, channel: str, message: str | bytes) -> bool:
         """Put ``message`` in the channel's slot; True when it replaced one never sent (a drop)."""
@@ -131,6 +137,9 @@ class ViewServer:
         self._joined: asyncio.Event | None = None      # set when a page connects (wakes the ticker)
         self._ready = threading.Event()
         self._start_error: BaseException | None = None
+        # called on the server's thread when what the pages want may have changed (pages came or went,
+        # chose another vehicle or LiDAR setting, or stalled): see :meth:`demand`
+        self.on_change: Callable[[], None] | None = None
         # counters (written on the server's thread)
         self.pages_total = 0
         self.frames_sent = 0
@@ -184,6 +193,23 @@ class ViewServer:
     def has_ready_pages(self) -> bool:
         return any(p.ready for p in list(self._pages))
 
+    def demand(self) -> tuple[bool, frozenset[str], bool, frozenset[str]]:
+        """What the pages that are watching (not stalled) want now (any thread): (any watching, the
+        vehicles whose images they show, whether one shows every LiDAR, the vehicles whose LiDAR they show)."""
+        now_s = time.monotonic()
+        pages = [p for p in list(self._pages) if p.watching(now_s)]
+        selected = frozenset(p.selected for p in pages if p.selected is not None)
+        lidar_all = any(p.lidar_mode == "all" for p in pages)
+        lidar_of = frozenset(p.selected for p in pages if p.lidar_mode == "selected" and p.selected is not None)
+        return bool(pages), selected, lidar_all, lidar_of
+
+    def _changed(self) -> None:
+        if self.on_change is not None:
+            try:
+                self.on_change()
+            except Exception as exc:
+                self._error("reporting what the pages want", exc)
+
     def thread_cpu_s(self) -> float | None:
         """CPU time the server's thread has used so far [s] (None once it ended, or where unsupported)."""
         thread = self._thread
@@ -196,7 +222,10 @@ class ViewServer:
         cpu_s = self.thread_cpu_s()
         if cpu_s is not None:
             self._cpu_s = cpu_s
-        return {"url": self.url, "clients": len(self._pages), "clients_total": self.pages_total,
+        pages = list(self._pages)
+        return {"url": self.url, "clients": len(pages), "clients_total": self.pages_total,
+                "clients_watching": sum(p.watching(time.monotonic()) for p in pages),
+                "messages_waiting": sum(len(p.slots) for p in pages),
                 "frames_sent": self.frames_sent, "frames_dropped": self.frames_dropped, "bytes_sent": self.bytes_sent,
                 "http_requests": self.http_requests, "bad_messages": self.bad_messages,
                 "thread_cpu_s": round(self._cpu_s, 3), "error_count": self.error_count, "errors": list(self.errors)}
@@ -306,6 +335,7 @@ class ViewServer:
         finally:
             self._pages.discard(page)
             sender.cancel()
+            self._changed()
 
     async def _sender(self, page: _Page) -> None:
         from websockets.exceptions import ConnectionClosed
@@ -323,6 +353,8 @@ class ViewServer:
                     message = page.slots.pop(channel)
                     await page.ws.send(message)
                     self._count_sent(message)
+                    if channel == "state":
+                        page.state_sent_s = time.monotonic()
         except (ConnectionClosed, asyncio.CancelledError):
             pass
         except Exception as exc:
@@ -343,6 +375,8 @@ class ViewServer:
             page.seen.pop("image", None)               # the new vehicle's newest image goes out next
         elif kind == "lidar":
             page.lidar_mode = msg["mode"]
+        if kind in ("select", "lidar"):
+            self._changed()
         else:
             try:
                 self.source.control(msg)
@@ -371,6 +405,7 @@ class ViewServer:
 
     def _tick(self) -> None:
         """Poll the source for the pages ready for more, fill their mailboxes (server's thread)."""
+        self._changed()
         ready = [p for p in self._pages if p.ready]
         self.frames_dropped += len(self._pages) - len(ready)       # the busy ones miss this state
         if not ready:

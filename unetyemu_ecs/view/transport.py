@@ -26,15 +26,19 @@ import numpy as np
 from ..systems.flight_state import NavState
 from ..transport.api import CommandPort, Snapshot, TransportError, TransportOptions
 from ..transport.snapshot import SnapshotQueue
+from ..transport.worker import ProcessTransport, Wants
 from . import frames
 from .scene import VIEW_SENSORS, SceneInfo, scene_from_world
 from .server import ServerError, Update, ViewServer
+from .wire import STATE_HZ
 
 QUEUE_DEPTH = 64             # snapshots (a quarter second at 240 Hz): the view needs only the newest
 RTF_WINDOW_S = 2.0           # [s, wall] the real-time factor is measured over
 EVENTS_SHOWN = 8
 _NAV_NAMES = {int(s): s.name for s in NavState}
 Mount = tuple[tuple[float, float, float], tuple[float, float, float, float]]
+# the snapshot arrays the page's state is made of (all that crosses to the worker of them)
+VIEW_ARRAYS = ("pos_enu_m", "quat_enu_flu_xyzw", "vel_enu_m_s", "soc_frac", "armed", "nav_state")
 
 
 class RealTimeFactor:
@@ -103,7 +107,8 @@ class LiveSource:
                       dict(self._lidar), images)
 
     def _absorb(self, snap: Snapshot) -> None:
-        self._snap = snap
+        if snap.arrays:                  # from a worker process, a step carries them only when they are wanted
+            self._snap = snap
         if snap.mission_status:
             self._status.update(snap.mission_status)
         if snap.events_end > self._events_seen:
@@ -111,7 +116,7 @@ class LiveSource:
             self._events_seen = snap.events_end
         for sample in snap.sensors:
             sensor = sample.sensor
-            if sensor not in VIEW_SENSORS or sample.vehicle not in snap.vehicles:
+            if sensor not in VIEW_SENSORS or sample.vehicle not in snap.vehicles or not snap.arrays:
                 continue
             self._seq += 1
             if sensor == "lidar":
@@ -173,17 +178,26 @@ class ViewTransport:
         self.requested_port = port
         self._scene = scene_from_world(world)
         self._mounts = sensor_mounts(world)
+        self._vehicles = tuple(e.name for e in world.entities if e.kind != "package")
         self._queue = SnapshotQueue(QUEUE_DEPTH)
         self.server: ViewServer | None = None
+        # set by the worker process (worker_main.WantsReporter): called when what wanted() says may have changed
+        self.on_wants_changed: Any = None
 
     @property
     def url(self) -> str:
         """``http://127.0.0.1:<port>/`` once started."""
         return self.server.url if self.server is not None else ""
 
+    @property
+    def port(self) -> int | None:
+        """The port served once started (the OS's choice for 0)."""
+        return self.server.port if self.server is not None else None
+
     def start(self, port: CommandPort, first: Snapshot) -> None:
         self._queue.put(first)
         server = ViewServer(LiveSource(self._scene, self._mounts, self._queue), self.requested_port, name=self.name)
+        server.on_change = self._pages_changed
         try:
             server.start()
         except ServerError as exc:
@@ -192,6 +206,25 @@ class ViewTransport:
 
     def offer(self, snapshot: Snapshot) -> None:
         self._queue.put(snapshot)
+
+    def wanted(self) -> Wants:
+        """What of the snapshots the pages need now (this view runs in a worker process, :mod:`..transport.worker`):
+        nothing while no page watches (none connected, or every one stalled); else the vehicle arrays
+        (at STATE_HZ, and with every LiDAR cloud: it is drawn with the pose of its step), the camera and
+        depth images of the vehicles the pages selected and the LiDAR clouds they show."""
+        server = self.server
+        if server is None:
+            return Wants()
+        watching, images_of, lidar_all, lidar_of = server.demand()
+        if not watching:
+            return Wants()
+        samples = {(v, "lidar") for v in (self._vehicles if lidar_all else lidar_of)}
+        samples.update((v, key) for v in images_of for key in VIEW_SENSORS if key != "lidar")
+        return Wants(arrays=True, samples=frozenset(samples))
+
+    def _pages_changed(self) -> None:
+        if self.on_wants_changed is not None:
+            self.on_wants_changed()
 
     def flush(self, timeout_s: float = 2.0) -> bool:
         """True once a page keeping up has received what was offered so far; True at once with none."""
@@ -210,14 +243,24 @@ class ViewTransport:
         return counters
 
 
-def create_view_transport(world: Any, options: TransportOptions) -> ViewTransport | None:
-    """The ``view`` transport plugin's ``create``: a web view when ``options.view`` names a port."""
+def create_view_transport(world: Any, options: TransportOptions) -> ProcessTransport | None:
+    """The ``view`` transport plugin's ``create``: a web view when ``options.view`` names a port, run in a
+    worker process (:mod:`..transport.worker`) as a selective transport: the server's thread in the
+    simulation's process (building the page's frames, sending them) cost the delivery scenario about a
+    tenth of its real-time factor on 2 cores with a page showing every LiDAR cloud."""
     port = getattr(options, "view", None)
     if port is None:
         return None
     if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
         raise TransportError(f"view: port must be an integer from 0 to 65535 (0: any free port), got {port!r}")
-    return ViewTransport(world, port)
+    return ProcessTransport("view", f"{__name__}:view_in_this_process", world, options, arrays=VIEW_ARRAYS,
+                            queue_depth=QUEUE_DEPTH, arrays_hz=STATE_HZ, arrays_with_samples=True)
 
 
-__all__ = ["LiveSource", "QUEUE_DEPTH", "RealTimeFactor", "ViewTransport", "create_view_transport", "sensor_mounts"]
+def view_in_this_process(world: Any, options: TransportOptions) -> ViewTransport:
+    """The view itself (what the worker process runs)."""
+    return ViewTransport(world, int(options.view))
+
+
+__all__ = ["LiveSource", "QUEUE_DEPTH", "RealTimeFactor", "VIEW_ARRAYS", "ViewTransport", "create_view_transport",
+           "sensor_mounts", "view_in_this_process"]
