@@ -65,11 +65,18 @@ _LEN = struct.Struct("<I")
 def write_frame(fd: int, obj: Any) -> int:
     """Pickle ``obj`` and write it as one frame to the file descriptor ``fd``; returns the bytes written."""
     data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
-    view = memoryview(_LEN.pack(len(data)) + data)
-    while view:
-        n = os.write(fd, view)
-        view = view[n:]
-    return len(data) + _LEN.size
+    parts = [_LEN.pack(len(data)), memoryview(data)]      # no copy of the frame to put its length first
+    total = len(data) + _LEN.size
+    written = 0
+    while written < total:
+        n = os.writev(fd, parts)
+        written += n
+        while parts and n >= len(parts[0]):
+            n -= len(parts[0])
+            parts.pop(0)
+        if n:
+            parts[0] = memoryview(parts[0])[n:]
+    return total
 
 
 def read_frame(stream: Any) -> Any:
