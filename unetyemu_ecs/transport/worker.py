@@ -17,25 +17,26 @@ command results (the worker appends them to lists of its own, so the cursors wor
 :class:`~.api.Snapshot`), and the arrays named by ``arrays``. Inner transports are output-only: the
 worker refuses command submissions (a transport that takes commands runs in the simulation's process).
 
-A *selective* inner transport (one whose consumers choose what they get: Foxglove's subscribe per topic,
-the web view's pages pick a vehicle and its LiDAR) says what it
-wants with a :class:`Wants` (its ``wanted()``; the worker sends it before ``ready``, before every
-``flushed`` and whenever the transport calls ``on_wants_changed``). Then only these cross: the
-samples of the topics (or vehicles' sensors) it wants, the first sample of every topic (so that it can advertise the topic),
-every sample of the topics ``keep`` names (latched ones), the arrays only while it wants them and at
-most ``arrays_hz`` times a simulated second, and a snapshot only when it carries one of those, new
-events or results, a mission status, or when the transport wants every snapshot (``/clock``). What
-stays behind is counted (``samples_held_back``, ``snapshots_held_back``): a server nobody watches
-costs the loop the snapshot and a few microseconds of this thread.
+A *selective* inner transport (one whose consumers choose what they get: Foxglove's subscribe per
+topic, the web view's pages pick a vehicle and its LiDAR) says what it wants with a :class:`Wants`
+(its ``wanted()``; the worker sends it before ``ready``, before every ``flushed`` and whenever the
+transport calls ``on_wants_changed``). Then ``offer`` queues only these, deciding on the simulation
+thread in a few microseconds: the samples of the topics (or vehicles' sensors) it wants, the first
+sample of every topic (so that it can advertise the topic), every sample of the topics ``keep``
+names (latched ones), the arrays only while it wants them (at ``arrays_hz``, and with every sample if
+``arrays_with_samples``), and a snapshot only when it carries one of those, new events or results, a
+mission status, or when the transport wants every snapshot (``/clock``). What stays behind is
+counted (``samples_held_back``, ``snapshots_held_back``): a server nobody watches costs the loop the
+snapshot, and its send thread sleeps.
 
 Frames on both pipes: 4-byte little-endian length, then a pickle. To the worker: ``("start",
 factory, world, options, vehicles, kinds, first)``, ``("flush", n, timeout_s)``,
-``("counters", n)``, ``("stop", timeout_s)``, and the snapshots in batches, ``("snaps", [slim, ...])``: one frame for
-all that gathered while the send thread napped (fewer wake-ups and writes, so fewer times the loop
-waits for the interpreter lock). Back: ``("ready", info)`` or ``("error", text)`` after start,
-``("flushed", n, ok, counters)``, ``("counters", n, counters)``, ``("stopped", counters)``, and from a selective transport
-``("wants", Wants)`` at any time. The worker's stderr is this process's,
-so its warnings and tracebacks land in the same log.
+``("counters", n)``, ``("stop", timeout_s)``, and the snapshots in batches, ``("snaps", [slim, ...])``:
+one frame for all that gathered while the send thread napped (fewer wake-ups and writes, so fewer
+times the loop waits for the interpreter lock). Back: ``("ready", info)`` or ``("error", text)``
+after start, ``("flushed", n, ok, counters)``, ``("counters", n, counters)``, ``("stopped",
+counters)``, and from a selective transport ``("wants", Wants)`` at any time. The worker's stderr is
+this process's, so its warnings and tracebacks land in the same log.
 """
 
 from __future__ import annotations
@@ -287,7 +288,7 @@ class ProcessTransport:
                                       snapshots_held_back=self.snapshots_held_back)
         return counters
 
-    # -- the send thread -------------------------------------------------------------------------
+    # -- selection (simulation thread) ---------------------------------------------------------
     def _selected(self, snap: Snapshot, wants: Wants) -> Snapshot | None:
         """What a selective transport gets of ``snap`` (see the module docstring): a snapshot with only those
         samples, and without arrays where it gets none; None: nothing (simulation thread)."""
@@ -312,6 +313,12 @@ class ProcessTransport:
                         results_end=snap.results_end, mission_status=snap.mission_status, params=snap.params,
                         params_version=snap.params_version)
 
+    def _kept_topic(self, topic: str) -> bool:
+        kept = self._kept.get(topic)
+        if kept is None:
+            kept = self._kept[topic] = self._keep is not None and bool(self._keep(topic))
+        return kept
+
     # -- the send thread -------------------------------------------------------------------------
     def _send_snapshot(self, snap: Snapshot) -> None:
         if self.send_errors:                        # the worker is gone: drop (counted once)
@@ -320,12 +327,6 @@ class ProcessTransport:
         self._events_sent, self._results_sent = snap.events_end, snap.results_end
         with self._write_lock:
             self._batch.append(item)
-
-    def _kept_topic(self, topic: str) -> bool:
-        kept = self._kept.get(topic)
-        if kept is None:
-            kept = self._kept[topic] = self._keep is not None and bool(self._keep(topic))
-        return kept
 
     def _gather(self) -> None:
         """Between snapshots: once the queue is empty, send what was gathered as one frame, then nap."""
