@@ -240,8 +240,8 @@ def run_consumer(queue: SnapshotQueue, handle: Callable[[Snapshot], None], stop:
             for seq, snap in items:
                 if stop.is_set():
                     break
+                last = seq                  # done once handled, or once its handling failed
                 handle(snap)
-                last = seq
         finally:
             if last:
                 queue.task_done(last)

@@ -7,6 +7,10 @@ and keeping up, at most ``STATE_HZ`` times a second of wall time. With no page c
 drains it and nothing is computed: the queue just keeps the newest snapshots (and, through its
 drops, every mission status change), so a page that connects later starts from the present.
 
+In a run the view lives in a worker process of its own (:func:`create_view_transport`): there this
+transport is fed by a :class:`~unetyemu_ecs.transport.worker.ProcessTransport`, to which it says what
+its pages want (:meth:`ViewTransport.wanted`), so that nothing else leaves the simulation's process.
+
 :class:`LiveSource` turns the drained snapshots into what the page shows: the newest pose, speed,
 altitude, battery, mode and mission step of each vehicle, the real-time factor (sim time over wall
 time of the snapshots it received, over the last :data:`RTF_WINDOW_S` seconds), the newest events,
