@@ -139,12 +139,12 @@ class TransportSnapshotSystem(esper.Processor):
 
 
 class SnapshotQueue:
-    """A transport's bounded drop-oldest queue of snapshots (``put`` on the sim thread, ``get`` on
+    """A transport's bounded drop-oldest queue of snapshots (``put`` on the sim thread, ``get_all`` on
     the transport's).
 
     When full, ``put`` drops the oldest snapshot (counted in ``dropped``) but keeps its mission
-    status changes: the next snapshot ``get`` returns carries them (newer ones win), so a change is
-    never lost with its snapshot. Events and results need no such care (cursor into shared lists).
+    status changes: the first snapshot ``get_all`` returns next carries them (newer ones win), so a
+    change is never lost with its snapshot. Events and results need no such care (cursor into shared lists).
     """
 
     def __init__(self, maxlen: int) -> None:
@@ -209,7 +209,7 @@ class SnapshotQueue:
             return self._done.wait_for(lambda: self._handled >= target, timeout_s)
 
     def wake(self) -> None:
-        """Wake a consumer waiting in :meth:`get` (to stop it)."""
+        """Wake a consumer waiting in :meth:`get_all` (to stop it)."""
         self._ready.set()
 
 

@@ -107,12 +107,9 @@ class Wants(NamedTuple):
     samples: frozenset[tuple[str, str]] = frozenset()
 
 
-def slim(snap: Snapshot, arrays: Sequence[str], events_from: int, results_from: int,
-         sensors: Sequence[Any] | None = None) -> tuple:
-    """What crosses to the worker of one snapshot: only the arrays named, only new events and results,
-    the ``sensors`` given (default: all of the snapshot's)."""
-    return (snap.step, snap.sim_time_s, snap.dt_s, {k: snap.arrays[k] for k in arrays},
-            tuple(snap.sensors if sensors is None else sensors),
+def slim(snap: Snapshot, arrays: Sequence[str], events_from: int, results_from: int) -> tuple:
+    """What crosses to the worker of one snapshot: only the arrays named, only new events and results."""
+    return (snap.step, snap.sim_time_s, snap.dt_s, {k: snap.arrays[k] for k in arrays}, tuple(snap.sensors),
             list(snap.events[events_from:snap.events_end]), list(snap.results[results_from:snap.results_end]),
             {k: dict(v) for k, v in snap.mission_status.items()})
 
