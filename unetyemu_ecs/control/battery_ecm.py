@@ -103,21 +103,24 @@ class PackStep(NamedTuple):
 
 def cell_ocv_v(soc_frac: np.ndarray) -> np.ndarray:
     """Open-circuit voltage of one cell [V] at ``soc_frac`` (any shape, clipped to [0, 1]); Chen 2006."""
-    s = np.minimum(np.maximum(soc_frac, 0.0), 1.0)
-    return _ocv_of_clipped_v(s, np.exp(_OCV_EXP_RATE * s))
+    return _ocv_of_clipped_v(*clipped_soc_and_exp(soc_frac))
 
 
 def _cell_ocv_integral_v(soc_frac: np.ndarray) -> np.ndarray:
     """``int_0^soc OCV(s) ds`` [V] (times capacity in Ah: open-circuit energy in Wh)."""
-    s = np.minimum(np.maximum(soc_frac, 0.0), 1.0)
-    return _ocv_integral_of_clipped_v(s, np.exp(_OCV_EXP_RATE * s))
+    return _ocv_integral_of_clipped_v(*clipped_soc_and_exp(soc_frac))
 
 
 def cell_ocv_and_integral_v(soc_frac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`cell_ocv_v` and ``int_0^soc OCV(s) ds`` [V] at ``soc_frac`` at once (one exponential for both)."""
-    s = np.minimum(np.maximum(soc_frac, 0.0), 1.0)
-    exp_term = np.exp(_OCV_EXP_RATE * s)
+    s, exp_term = clipped_soc_and_exp(soc_frac)
     return _ocv_of_clipped_v(s, exp_term), _ocv_integral_of_clipped_v(s, exp_term)
+
+
+def clipped_soc_and_exp(soc_frac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The SOC clipped to [0, 1] and the OCV fit's ``e^(-35 s)`` at it: what the OCV and its integral share."""
+    s = np.minimum(np.maximum(soc_frac, 0.0), 1.0)
+    return s, np.exp(_OCV_EXP_RATE * s)
 
 
 def _ocv_of_clipped_v(s: np.ndarray, exp_term: np.ndarray) -> np.ndarray:
@@ -152,16 +155,15 @@ def pack_current_for_power_a(power_w: np.ndarray, ocv_pack_v: np.ndarray, v_rc_v
     Solves ``P = (E - I R0) I`` with ``E = OCV - v_rc`` (> 0) for its smaller root, written as
     ``I = 2P / (E + sqrt(E^2 - 4 R0 P))`` so that R0 = 0 gives ``P / E``. Where ``P > E^2 / (4 R0)`` the
     pack cannot deliver P: the current is that of its maximum-power point ``E / (2 R0)`` and the flag is set.
-    All (M,).
+    All (M,), or scalars (arithmetic only: kernels compile it, :mod:`.compiled`).
     """
     e_v = ocv_pack_v - v_rc_v
     disc_v2 = e_v * e_v - 4.0 * r0_pack_ohm * power_w
-    limited = disc_v2 < 0.0
-    current = 2.0 * power_w / (e_v + np.sqrt(np.maximum(disc_v2, 0.0)))
-    if isinstance(limited, np.ndarray) and not limited.any():     # no pack at its limit: the root as it is
-        return current, limited
-    at_max = e_v / (2.0 * np.where(limited, r0_pack_ohm, 1.0))
-    return np.where(limited, at_max, current), limited
+    root = 2.0 * power_w / (e_v + np.sqrt(np.maximum(disc_v2, 0.0)))
+    # the smaller root never exceeds the maximum-power current E / (2 R0); where there is no root the clamped
+    # formula gives more than it, so the smaller of the two is the answer either way (R0 = 0: no limit)
+    at_max = e_v / np.maximum(2.0 * r0_pack_ohm, 1e-300)
+    return np.minimum(root, at_max), disc_v2 < 0.0
 
 
 def step_pack(soc_frac: np.ndarray, v_rc_v: np.ndarray, current_a: np.ndarray, dt_s: float,

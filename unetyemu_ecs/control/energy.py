@@ -19,9 +19,14 @@ def rotor_power_w(thrust_n: np.ndarray, air_density_kg_m3: np.ndarray, disk_area
     thrust_n : (M, R) [N] thrust of each rotor (negative values count as zero)
     air_density_kg_m3, disk_area_m2, efficiency : (M,) per vehicle
     """
-    t = np.maximum(thrust_n, 0.0)
-    denom = np.sqrt(2.0 * air_density_kg_m3 * disk_area_m2) * efficiency
-    return t ** 1.5 / denom[:, None]
+    return actuator_disk_power_w(thrust_n, (2.0 * air_density_kg_m3 * disk_area_m2)[:, None], efficiency[:, None])
+
+
+def actuator_disk_power_w(thrust_n: np.ndarray, two_rho_area_kg_m: np.ndarray, efficiency: np.ndarray) -> np.ndarray:
+    """Electrical power [W] of rotors of thrust ``thrust_n`` (negative counts as zero) with ``2 rho A`` given (a
+    constant of the rotor): ``T^1.5 / (sqrt(2 rho A) eta)``. Any broadcastable shapes or scalars (arithmetic
+    only: kernels compile it, :mod:`.compiled`)."""
+    return np.maximum(thrust_n, 0.0) ** 1.5 / (np.sqrt(two_rho_area_kg_m) * efficiency)
 
 
 def hover_power_w(mass_kg: float, n_rotors: int, gravity_m_s2: float, air_density_kg_m3: float,

@@ -34,6 +34,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .compiled import jit, ufunc
+
 # Leishman (2006) ch. 2: empirical induced velocity in axial descent, v_i / v_h as a polynomial of V_c / v_h
 _VRS_FIT = (1.15, -1.125, -1.372, -1.718, -0.655)
 PROFILE_MU2_FACTOR = 4.65     # profile power grows as (1 + 4.65 mu^2) (Leishman ch. 5)
@@ -54,6 +56,35 @@ def hover_induced_velocity_of_loading_m_s(thrust_pos_n: np.ndarray, two_rho_area
     return np.sqrt(thrust_pos_n / two_rho_area_kg_m)
 
 
+def _glauert_inflow_scalar(v_axial_m_s: float, v_inplane_m_s: float, v_h_m_s: float, guess_m_s: float) -> float:
+    """Glauert's total inflow of one rotor (:func:`glauert_inflow_m_s`; ``guess_m_s`` NaN: none)."""
+    vh2 = v_h_m_s * v_h_m_s
+    vin2 = v_inplane_m_s * v_inplane_m_s
+    if v_axial_m_s * v_inplane_m_s < -vh2:                  # no positive root: windmill-brake state, bisection
+        lo, hi = v_axial_m_s, 0.0                             # F(lo) < 0 < F(hi)
+        for _ in range(_BISECTION_STEPS):
+            mid = 0.5 * (lo + hi)
+            if mid - v_axial_m_s - vh2 / np.sqrt(vin2 + mid * mid) > 0.0:
+                hi = mid
+            else:
+                lo = mid
+        return 0.5 * (lo + hi)
+    if guess_m_s > 0.05 * v_h_m_s:                           # the previous step's root, a plausible inflow
+        u, steps = guess_m_s, _WARM_NEWTON_STEPS
+    else:                                                    # a first step, or a root near u = 0: from cold
+        half = 0.5 * v_axial_m_s
+        u, steps = half + np.sqrt(half * half + vh2 * vh2 / (vh2 + vin2 + 1e-12)), _NEWTON_STEPS
+    for _ in range(steps):
+        r2 = vin2 + u * u + 1e-12
+        r = np.sqrt(r2)
+        u = max(u - (u - v_axial_m_s - vh2 / r) / (1.0 + vh2 * u / (r2 * r)), 1e-9)
+    return u
+
+
+glauert_inflow_scalar_m_s = jit(_glauert_inflow_scalar)
+_glauert_inflow_ufunc = ufunc("f8(f8, f8, f8, f8)")(_glauert_inflow_scalar)
+
+
 def glauert_inflow_m_s(v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray, v_h_m_s: np.ndarray,
                         guess_m_s: np.ndarray | None = None) -> np.ndarray:
     """Total inflow ``u = V_c + v_i`` of Glauert's relation ``u = V_c + v_h^2 / sqrt(V_h^2 + u^2)``.
@@ -62,69 +93,50 @@ def glauert_inflow_m_s(v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray, v_h_m
     than ``V_c = -v_h^2 / V_h`` there is none and the air flows up through the disk: the root in
     ``(V_c, 0)`` (the windmill-brake state, by bisection). Both roots meet at ``u = 0`` on that
     boundary, so the result is continuous. Newton starts from ``guess_m_s`` where it is a plausible
-    inflow (the previous step's root: two iterations then suffice), else from the axial closed form with
-    the in-plane speed folded into ``v_h`` (exact without in-plane speed).
+    inflow (the previous step's root, ``> 0.05 v_h``: two iterations then suffice), else from the axial
+    closed form with the in-plane speed folded into ``v_h`` (exact without in-plane speed). Any
+    broadcastable shapes; compiled per rotor (:func:`glauert_inflow_scalar_m_s` is the kernels' form).
     """
-    v_axial_m_s, v_inplane_m_s, v_h_m_s = np.asarray(v_axial_m_s), np.asarray(v_inplane_m_s), np.asarray(v_h_m_s)
-    vh2 = v_h_m_s * v_h_m_s
-    vin2 = v_inplane_m_s * v_inplane_m_s
-    plausible = None if guess_m_s is None else guess_m_s > 0.05 * v_h_m_s
-    if plausible is not None and plausible.all():
-        u, steps = guess_m_s, _WARM_NEWTON_STEPS
-    else:                                                    # a first step, or a root near u = 0: from cold
-        half = 0.5 * v_axial_m_s
-        cold = half + np.sqrt(half * half + vh2 * vh2 / (vh2 + vin2 + 1e-12))
-        u, steps = (cold if plausible is None else np.where(plausible, guess_m_s, cold)), _NEWTON_STEPS
-    for _ in range(steps):
-        r2 = vin2 + u * u + 1e-12
-        r = np.sqrt(r2)
-        u = np.maximum(u - (u - v_axial_m_s - vh2 / r) / (1.0 + vh2 * u / (r2 * r)), 1e-9)
-    upward = v_axial_m_s * v_inplane_m_s < -vh2           # no positive root: windmill-brake state
-    if upward.any():
-        vc, vh_in, vh2_in = (np.broadcast_to(a, u.shape)[upward] for a in (v_axial_m_s, v_inplane_m_s, vh2))
-        lo, hi = vc.copy(), np.zeros_like(vc)               # F(lo) < 0 < F(hi)
-        for _ in range(_BISECTION_STEPS):
-            mid = 0.5 * (lo + hi)
-            above = mid - vc - vh2_in / np.sqrt(vh_in * vh_in + mid * mid) > 0.0
-            hi, lo = np.where(above, mid, hi), np.where(above, lo, mid)
-        u = np.array(u, dtype=float)
-        u[upward] = 0.5 * (lo + hi)
-    return u
+    return _glauert_inflow_ufunc(v_axial_m_s, v_inplane_m_s, v_h_m_s, np.nan if guess_m_s is None else guess_m_s)
 
 
-def _descent_induced_m_s(v_axial_m_s: np.ndarray, v_h_m_s: np.ndarray) -> np.ndarray:
-    """Induced velocity in axial descent (``V_c < 0``): the vortex-ring fit for ``-2 <= x < 0``, the
-    windmill-brake state below, both meeting momentum theory at ``x = 0`` and ``x = -2``."""
-    vh = np.maximum(v_h_m_s, 1e-9)
-    x = np.maximum(v_axial_m_s / vh, -2.0)
+def _descent_induced_scalar(v_axial_m_s: float, v_h_m_s: float) -> float:
+    """Induced velocity of one rotor in axial descent (``V_c < 0``): the vortex-ring fit for ``-2 <= x < 0``,
+    the windmill-brake state below, both meeting momentum theory at ``x = 0`` and ``x = -2``."""
+    vh = max(v_h_m_s, 1e-9)
+    x = v_axial_m_s / vh
+    if x <= -2.0:
+        half = -0.5 * v_axial_m_s
+        return half - np.sqrt(max(half * half - vh * vh, 0.0))
     k0, k1, k2, k3, k4 = _VRS_FIT
     fit = k0 + x * (k1 + x * (k2 + x * (k3 + x * k4)))
     fit_at_minus2 = k0 - 2 * k1 + 4 * k2 - 8 * k3 + 16 * k4
     ring = fit - (k0 - 1.0) - (fit_at_minus2 - (k0 - 1.0) - 1.0) * (-x / 2.0)   # 1 at x = 0 and at x = -2
-    beyond = v_axial_m_s / vh <= -2.0
-    if not beyond.any():
-        return ring * vh
-    half = -0.5 * v_axial_m_s
-    windmill = half - np.sqrt(np.maximum(half * half - vh * vh, 0.0))
-    return np.where(beyond, windmill, ring * vh)
+    return ring * vh
 
 
-def vortex_ring_correction_m_s(v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray, v_h_m_s: np.ndarray) -> np.ndarray:
-    """What descent adds to Glauert's inflow [m/s]: the difference between the axial-descent curve and
-    momentum theory in axial flight, with weight ``max(0, 1 - V_h / v_h)``: zero at ``V_c = 0``
-    (continuous with climb at any in-plane speed), the whole axial curve without in-plane speed. A
-    scalar 0 where no rotor descends faster than ``1e-4 v_h`` (the correction would be < 1e-4 v_h)."""
-    descending = np.asarray(v_axial_m_s < -_NEGLIGIBLE_DESCENT_FRAC * v_h_m_s)
-    if not descending.any():
-        return np.float64(0.0)
-    weight = np.where(descending, np.minimum(np.maximum(1.0 - v_inplane_m_s / np.maximum(v_h_m_s, 1e-9), 0.0), 1.0),
-                      0.0)
-    if not (weight > 0.0).any():
-        return np.float64(0.0)
-    v_c = np.minimum(v_axial_m_s, 0.0)
-    half = 0.5 * v_c
+descent_induced_scalar_m_s = jit(_descent_induced_scalar)
+
+
+def _vortex_ring_correction_scalar(v_axial_m_s: float, v_inplane_m_s: float, v_h_m_s: float) -> float:
+    """:func:`vortex_ring_correction_m_s` of one rotor."""
+    if not v_axial_m_s < -_NEGLIGIBLE_DESCENT_FRAC * v_h_m_s:
+        return 0.0
+    weight = min(max(1.0 - v_inplane_m_s / max(v_h_m_s, 1e-9), 0.0), 1.0)
+    if not weight > 0.0:
+        return 0.0
+    half = 0.5 * v_axial_m_s                                               # V_c < 0 here
     axial_momentum = -half + np.sqrt(half * half + v_h_m_s * v_h_m_s)     # closed form of Glauert without V_h
-    return weight * (_descent_induced_m_s(v_c, v_h_m_s) - axial_momentum)
+    return weight * (descent_induced_scalar_m_s(v_axial_m_s, v_h_m_s) - axial_momentum)
+
+
+vortex_ring_correction_scalar_m_s = jit(_vortex_ring_correction_scalar)
+vortex_ring_correction_m_s = ufunc("f8(f8, f8, f8)")(_vortex_ring_correction_scalar)
+vortex_ring_correction_m_s.__doc__ = """What descent adds to Glauert's inflow [m/s]: the difference between the
+axial-descent curve and momentum theory in axial flight, with weight ``max(0, 1 - V_h / v_h)``: zero at
+``V_c = 0`` (continuous with climb at any in-plane speed), the whole axial curve without in-plane speed; zero
+where the rotor descends slower than ``1e-4 v_h`` (the correction would be < 1e-4 v_h). A ufunc:
+``vortex_ring_correction_m_s(v_axial_m_s, v_inplane_m_s, v_h_m_s)``, any broadcastable shapes."""
 
 
 def rotor_inflow_m_s(thrust_n: np.ndarray, v_axial_m_s: np.ndarray, v_inplane_m_s: np.ndarray,
@@ -160,7 +172,7 @@ def shaft_power_of_positive_thrust_w(thrust_pos_n: np.ndarray, inflow_m_s: np.nd
                                      profile_mu2_w: np.ndarray, tip_speed_m_s: np.ndarray) -> np.ndarray:
     """:func:`shaft_power_from_inflow_w` [W] of a thrust ``T >= 0`` with ``profile_mu2_w = P_0h 4.65`` given (a
     constant of the rotor): ``T u + profile_mu2_w (V_h / V_tip)^2``."""
-    mu = np.asarray(v_inplane_m_s) / tip_speed_m_s
+    mu = v_inplane_m_s / tip_speed_m_s
     return thrust_pos_n * inflow_m_s + profile_mu2_w * mu * mu
 
 

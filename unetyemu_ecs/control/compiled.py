@@ -1,0 +1,41 @@
+"""How laws are compiled: numba, with the same options everywhere.
+
+A law is written once. The hot path of a small fleet is dominated by the cost of calling NumPy on
+arrays of a few elements (about a microsecond per operation), so a law that a per-step kernel calls is
+compiled by numba from that one source:
+
+- an arithmetic law without branches (``advance_pack``, ``terminal_from_ocv_v``) stays a NumPy
+  function for array callers, and :func:`jit` compiles the same function for the scalars a kernel
+  passes it;
+- a law with branches per element (Glauert's inflow: Newton's method or bisection) is written for one
+  rotor and compiled twice: :func:`jit` for kernels and :func:`ufunc` for arrays of any shape
+  (broadcasting as NumPy does).
+
+Compiled code is cached next to the source (``__pycache__``), so a process compiles a kernel only the
+first time it ever runs it (about a second each). Division by zero gives ``inf``/``nan`` as in NumPy
+(``error_model="numpy"``). A kernel keeps the interpreter lock: it runs for microseconds, and
+releasing it would let a transport thread take it and make the simulation wait for it back.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numba
+
+_OPTIONS = {"cache": True, "error_model": "numpy"}
+
+
+def jit(fn: Callable) -> Callable:
+    """``fn`` compiled by numba in nopython mode (lazily, per argument types; cached on disk)."""
+    return numba.njit(**_OPTIONS)(fn)
+
+
+def ufunc(signature: str) -> Callable[[Callable], Callable]:
+    """Decorator: a scalar law compiled to a NumPy ufunc of ``signature`` (e.g. ``"f8(f8, f8)"``), eagerly."""
+    def compile_ufunc(fn: Callable) -> Callable:
+        return numba.vectorize([signature], cache=True)(fn)
+    return compile_ufunc
+
+
+__all__ = ["jit", "ufunc"]
