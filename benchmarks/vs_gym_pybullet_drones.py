@@ -18,6 +18,8 @@ sensors), in its own interpreter.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import json
 import statistics
 import subprocess
@@ -48,10 +50,11 @@ def run_peer(n: int, seconds: float) -> float:
     side = int(np.ceil(np.sqrt(n)))
     radius = 0.3
     init = np.array([[1.0 * (i % side), 1.0 * (i // side), 0.5] for i in range(n)])
-    env = CtrlAviary(drone_model=DroneModel.CF2X, num_drones=n, initial_xyzs=init, initial_rpys=np.zeros((n, 3)),
-                     physics=Physics.PYB, pyb_freq=240, ctrl_freq=240, gui=False, record=False, obstacles=False,
-                     user_debug_gui=False)
-    ctrl = [DSLPIDControl(drone_model=DroneModel.CF2X) for _ in range(n)]
+    with contextlib.redirect_stdout(io.StringIO()):                   # the peer prints its URDF's parameters
+        env = CtrlAviary(drone_model=DroneModel.CF2X, num_drones=n, initial_xyzs=init, initial_rpys=np.zeros((n, 3)),
+                         physics=Physics.PYB, pyb_freq=240, ctrl_freq=240, gui=False, record=False, obstacles=False,
+                         user_debug_gui=False)
+        ctrl = [DSLPIDControl(drone_model=DroneModel.CF2X) for _ in range(n)]
     action = np.zeros((n, 4))
     steps = int(seconds * env.CTRL_FREQ)
     cpu0 = time.process_time()

@@ -29,6 +29,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .control.compiled import jit
+
 from unetyemu_ecs.units import wrap_angle_rad
 
 __all__ = [
@@ -165,31 +167,34 @@ def R_from_quat_xyzw(q: ArrayLike) -> np.ndarray:
     -------
     (..., 3, 3) float64, with ``v_a = R @ v_b``
     """
-    q = quat_normalize_xyzw(q)
-    return _rotation_entries(q).reshape(q.shape[:-1] + (3, 3))
+    q = _f64(q)
+    return _R_from_quats_xyzw(np.ascontiguousarray(q.reshape(-1, 4))).reshape(q.shape[:-1] + (3, 3))
 
 
-# R's nine entries from a unit quaternion in few numpy calls (each costs about a microsecond on a fleet of
-# one), with the textbook formulas' floating-point operations: entry k = scale_k (a_k + sign_k b_k), plus 1 on
-# the diagonal, where a_k and b_k are products of two components taken from the outer product q q^T: 1 - 2 (yy
-# + zz), 2 (xy - wz), ... (adding -b is subtracting b and -2 a + 1 is 1 - 2 a, exactly, signs of zero included)
-_X, _Y, _Z, _W = 0, 1, 2, 3
-_ENTRY_PRODUCTS = np.array([
-    [(_Y, _Y), (_X, _Y), (_X, _Z), (_X, _Y), (_X, _X), (_Y, _Z), (_X, _Z), (_Y, _Z), (_X, _X)],    # a_k
-    [(_Z, _Z), (_W, _Z), (_W, _Y), (_W, _Z), (_Z, _Z), (_W, _X), (_W, _Y), (_W, _X), (_Y, _Y)],    # b_k
-]) @ np.array([4, 1])                       # (2, 9) indices into the flattened 4 x 4 outer product
-_ENTRY_SIGN = np.array([1.0, -1.0, 1.0, 1.0, 1.0, -1.0, -1.0, 1.0, 1.0])
-_ENTRY_SCALE = np.array([-2.0, 2.0, 2.0, 2.0, -2.0, 2.0, 2.0, 2.0, -2.0])
-_DIAGONAL = np.array([0, 4, 8])
+@jit
+def set_R_from_quat_xyzw(q, R):
+    """Write into ``R`` (3, 3) the rotation matrix of the quaternion ``q`` (4,) xyzw, normalised first: the
+    textbook formulas (:func:`R_from_quat_xyzw` for arrays; kernels call this one)."""
+    n = np.sqrt((q[0] * q[0] + q[2] * q[2]) + (q[1] * q[1] + q[3] * q[3]))    # summed as quat_normalize_xyzw's einsum
+    x, y, z, w = q[0] / n, q[1] / n, q[2] / n, q[3] / n
+    R[0, 0] = 1.0 - 2.0 * (y * y + z * z)
+    R[0, 1] = 2.0 * (x * y - w * z)
+    R[0, 2] = 2.0 * (x * z + w * y)
+    R[1, 0] = 2.0 * (x * y + w * z)
+    R[1, 1] = 1.0 - 2.0 * (x * x + z * z)
+    R[1, 2] = 2.0 * (y * z - w * x)
+    R[2, 0] = 2.0 * (x * z - w * y)
+    R[2, 1] = 2.0 * (y * z + w * x)
+    R[2, 2] = 1.0 - 2.0 * (x * x + y * y)
 
 
-def _rotation_entries(q_unit: np.ndarray) -> np.ndarray:
-    """(..., 9) the rotation matrix of unit quaternions (xyzw) row by row."""
-    outer = (q_unit[..., :, None] * q_unit[..., None, :]).reshape(q_unit.shape[:-1] + (16,))
-    a_b = outer[..., _ENTRY_PRODUCTS]                          # (..., 2, 9)
-    entries = (a_b[..., 0, :] + a_b[..., 1, :] * _ENTRY_SIGN) * _ENTRY_SCALE
-    entries[..., _DIAGONAL] += 1.0
-    return entries
+@jit
+def _R_from_quats_xyzw(q):
+    """(K, 3, 3) of (K, 4) quaternions xyzw."""
+    R = np.empty((q.shape[0], 3, 3))
+    for k in range(q.shape[0]):
+        set_R_from_quat_xyzw(q[k], R[k])
+    return R
 
 
 def quat_xyzw_from_R(R: ArrayLike) -> np.ndarray:

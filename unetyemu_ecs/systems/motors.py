@@ -32,7 +32,8 @@ from ..control.ground_effect import (GROUND_EFFECT_CUTOFF_RADII, SurfaceIndex, g
                                      highest_top_near_m, surface_below_m, surface_index_from_shapes)
 from ..control.mixer import motor_positions_flu_m
 from ..control.rotor_power import hover_induced_velocity_m_s
-from ..control.rotor_wrench import rotor_torque_matrix_flu, rotor_wrench_enu
+from ..control.compiled import jit
+from ..control.rotor_wrench import add_rotor_wrench_enu, rotor_torque_matrix_flu
 from ..fleet import row_selector
 from ..phases import Phase
 from ..world import StepContext
@@ -59,18 +60,17 @@ class MotorSystem(FleetSystem):
         super().__init__()
         self._surface_layout: object = None
         self._surface: SurfaceIndex | None = None
+        self._live = np.zeros(0, dtype=bool)          # which drones' motors may turn (set each step)
 
     def gather(self, ctx: StepContext) -> None:
         (comps,) = self.components
         self._f_max = np.array([c.max_thrust_per_motor_n for c in comps])
         rated = np.array([np.nan if c.rated_voltage_v is None else c.rated_voltage_v for c in comps])
         self._follows_pack = ~np.isnan(rated)                    # max thrust follows the pack voltage
-        self._any_follows_pack = bool(self._follows_pack.any())
         self._rated_v = np.where(self._follows_pack, rated, 1.0)
         self._kappa = np.array([c.yaw_moment_coeff_m for c in comps])
         tau = np.array([c.motor_tau_s for c in comps], dtype=float)
         self._alpha = np.where(tau > 0.0, 1.0 - np.exp(-ctx.dt_s / np.maximum(tau, 1e-12)), 1.0)   # lag per step
-        self._alpha_col = self._alpha[:, None]
         arms = np.array([c.arm_length_m for c in comps])
         self._torque_matrix = rotor_torque_matrix_flu(motor_positions_flu_m(arms), self._kappa)   # (M, 3, 4)
         self._gather_ground_effect(ctx, comps, arms)
@@ -109,34 +109,23 @@ class MotorSystem(FleetSystem):
 
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
-        r = self.sel
-        live = (f.flight_mode[r] != MODE_DISARMED) & f.motors_enabled[r]
-        f_max = self._f_max
-        if self._any_follows_pack:         # (V / V_rated)^2 where the pack reports a voltage
-            volts = f.pack_voltage_v[r]
-            f_max = f_max * np.where(self._follows_pack & (volts > 0.0), (volts / self._rated_v) ** 2, 1.0)
-        cmd = f.motor_frac_cmd[r] * (f_max * live)[:, None]
-        f.motor_thrust_cmd_n[r] = cmd
-        lagged = f.motor_thrust_n[r]
-        if self._ge and self._lag:
-            lagged = lagged / f.ground_effect_factor[r]                       # out of ground effect
-        # a disabled motor stops at once
-        thrust = lagged + self._alpha_col * (cmd - lagged)
-        if np.count_nonzero(live) != live.size:
-            thrust = np.where(live[:, None], thrust, 0.0)
+        rows = self.rows
+        if self._live.shape != rows.shape:
+            self._live = np.zeros(rows.shape, dtype=bool)
+        lag_motor_thrusts(rows, self._f_max, self._follows_pack, self._rated_v, self._alpha, self._ge and self._lag,
+                          f.flight_mode, f.motors_enabled, f.pack_voltage_v, f.motor_frac_cmd, f.motor_thrust_cmd_n,
+                          f.motor_thrust_n, f.ground_effect_factor, self._live)
         if self._ge:
-            factor = self._ground_effect_factor(ctx, live, thrust)
+            factor = self._ground_effect_factor(ctx, self._live, f.motor_thrust_n[self.sel])
             if factor is not None:
                 f.ground_effect_factor[self._ge_sel] = factor
-                thrust[self._ge_k] *= factor
+                f.motor_thrust_n[self._ge_sel] *= factor
                 self._ge_dirty = True
             elif self._ge_dirty:
                 f.ground_effect_factor[self._ge_sel] = 1.0
                 self._ge_dirty = False
-        f.motor_thrust_n[r] = thrust
-        force, torque = rotor_wrench_enu(thrust, f.R_enu_flu[r], self._torque_matrix)
-        f.force_cmd_enu_n[r] += force
-        f.torque_cmd_enu_n_m[r] += torque
+        add_rotor_wrenches(rows, self._torque_matrix, f.motor_thrust_n, f.R_enu_flu, f.force_cmd_enu_n,
+                           f.torque_cmd_enu_n_m)
 
     def _ground_effect_factor(self, ctx: StepContext, live: np.ndarray, thrust_oge_n: np.ndarray) -> np.ndarray | None:
         """(G, 4) factor of the drones with ground effect on (1 for rotors off, upside down or high up);
@@ -167,3 +156,39 @@ class MotorSystem(FleetSystem):
         factor[g, m] = ground_effect_factor(height_m, self._ge_radius_m[g],
                                             np.hypot(air_flu_m_s[:, 0], air_flu_m_s[:, 1]), v_h_m_s)
         return factor
+
+
+@jit
+def lag_motor_thrusts(rows, f_max_n, follows_pack, rated_v, alpha, out_of_ground_effect, flight_mode, motors_enabled,
+                      pack_voltage_v, motor_frac_cmd, motor_thrust_cmd_n, motor_thrust_n, ground_effect_factor, live):
+    """The commanded thrust of each motor of the drones in fleet ``rows`` (the mixer's fraction of F_max, F_max
+    times ``(V / V_rated)^2`` where ``follows_pack`` and the pack reports a voltage) into ``motor_thrust_cmd_n``,
+    and ``motor_thrust_n`` moved towards it by the first-order lag's ``alpha`` per step, from the thrust out of
+    ground effect when ``out_of_ground_effect`` (the caller applies this step's factor). A disarmed drone, or
+    one whose motors are disabled, gets zero at once; ``live`` (M,) says which are neither."""
+    for k in range(rows.shape[0]):
+        r = rows[k]
+        on = flight_mode[r] != MODE_DISARMED and motors_enabled[r]
+        live[k] = on
+        f_max = f_max_n[k]
+        volts = pack_voltage_v[r]
+        if follows_pack[k] and volts > 0.0:
+            f_max = f_max * (volts / rated_v[k]) ** 2
+        scale = f_max if on else 0.0
+        for j in range(4):
+            cmd = motor_frac_cmd[r, j] * scale
+            motor_thrust_cmd_n[r, j] = cmd
+            lagged = motor_thrust_n[r, j]
+            if out_of_ground_effect:
+                lagged = lagged / ground_effect_factor[r, j]
+            motor_thrust_n[r, j] = lagged + alpha[k] * (cmd - lagged) if on else 0.0
+
+
+@jit
+def add_rotor_wrenches(rows, torque_matrix_flu, motor_thrust_n, R_enu_flu, force_cmd_enu_n, torque_cmd_enu_n_m):
+    """Add the rotors' resultant force and torque of the drones in fleet ``rows`` to the commanded ones
+    (:func:`..control.rotor_wrench.add_rotor_wrench_enu`; ``torque_matrix_flu`` (M, 3, 4) in row order)."""
+    for k in range(rows.shape[0]):
+        r = rows[k]
+        add_rotor_wrench_enu(motor_thrust_n[r], R_enu_flu[r], torque_matrix_flu[k], force_cmd_enu_n[r],
+                             torque_cmd_enu_n_m[r])

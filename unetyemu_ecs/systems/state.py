@@ -5,7 +5,8 @@ from __future__ import annotations
 import esper
 import numpy as np
 
-from ..frames import R_from_quat_xyzw, row_norm
+from ..control.compiled import jit
+from ..frames import set_R_from_quat_xyzw
 from ..phases import Phase
 from ..world import StepContext
 
@@ -27,6 +28,7 @@ class StateReadbackSystem(esper.Processor):
     def __init__(self) -> None:
         self._seen_version = -1
         self._bodies: list[int] = []
+        self._rows = np.empty(0, dtype=np.intp)
 
     def prime(self, ctx: StepContext) -> None:
         """Read the initial state (before the first step) so that phases before STATE see real poses."""
@@ -38,23 +40,39 @@ class StateReadbackSystem(esper.Processor):
     def _read(self, ctx: StepContext, first: bool) -> None:
         f = ctx.fleet
         if f.version != self._seen_version:
-            self._bodies = f.body_id[f.rows].tolist()
+            self._rows = f.rows
+            self._bodies = f.body_id[self._rows].tolist()
             self._seen_version = f.version
             first = True
-        r = f.active                                     # the active rows (a slice when contiguous)
         if not self._bodies:
             return
-        state = ctx.physics.read_states(self._bodies)                # (M, 13)
-        pos, quat, vel, rate = state[:, 0:3], state[:, 3:7], state[:, 7:10], state[:, 10:13]
+        store_body_states(self._rows, ctx.physics.read_states(self._bodies), ctx.dt_s, first, f.pos_enu_m,
+                          f.quat_enu_flu_xyzw, f.vel_enu_m_s, f.rate_enu_rad_s, f.rate_flu_rad_s, f.R_enu_flu,
+                          f.acc_enu_m_s2, f.odometer_m)
+
+
+@jit
+def store_body_states(rows, state, dt_s, first, pos_enu_m, quat_enu_flu_xyzw, vel_enu_m_s, rate_enu_rad_s,
+                      rate_flu_rad_s, R_enu_flu, acc_enu_m_s2, odometer_m):
+    """Write the PyBullet ``state`` (M, 13) of the bodies in fleet ``rows`` (position, quaternion xyzw,
+    velocity, angular velocity, world frame) into the fleet arrays, with the attitude also as a rotation
+    matrix, the angular velocity in body FLU (``R^T w``), the acceleration as the velocity's difference over
+    ``dt_s`` (0 when ``first``) and the distance moved added to the odometer (not when ``first``)."""
+    for k in range(rows.shape[0]):
+        r = rows[k]
+        s = state[k]
         if first:
-            f.acc_enu_m_s2[r] = 0.0
+            acc_enu_m_s2[r] = 0.0
         else:
-            f.acc_enu_m_s2[r] = (vel - f.vel_enu_m_s[r]) / ctx.dt_s
-            f.odometer_m[r] += row_norm(pos - f.pos_enu_m[r])
-        f.pos_enu_m[r] = pos
-        f.quat_enu_flu_xyzw[r] = quat
-        f.vel_enu_m_s[r] = vel
-        f.rate_enu_rad_s[r] = rate
-        R_enu_flu = R_from_quat_xyzw(quat)                     # (M, 3, 3)
-        f.R_enu_flu[r] = R_enu_flu
-        f.rate_flu_rad_s[r] = np.einsum("mji,mj->mi", R_enu_flu, rate)   # R^T @ w_enu
+            for i in range(3):
+                acc_enu_m_s2[r, i] = (s[7 + i] - vel_enu_m_s[r, i]) / dt_s
+            dx, dy, dz = s[0] - pos_enu_m[r, 0], s[1] - pos_enu_m[r, 1], s[2] - pos_enu_m[r, 2]
+            odometer_m[r] += np.sqrt(dx * dx + dy * dy + dz * dz)
+        pos_enu_m[r] = s[0:3]
+        quat_enu_flu_xyzw[r] = s[3:7]
+        vel_enu_m_s[r] = s[7:10]
+        rate_enu_rad_s[r] = s[10:13]
+        R = R_enu_flu[r]
+        set_R_from_quat_xyzw(s[3:7], R)
+        for j in range(3):                                   # R^T w
+            rate_flu_rad_s[r, j] = R[0, j] * s[10] + R[1, j] * s[11] + R[2, j] * s[12]
