@@ -26,6 +26,25 @@ if _WORKER.startswith("gw") and _WORKER[2:].isdigit():
 REPO_ROOT = Path(__file__).resolve().parents[1]
 WORLDS = REPO_ROOT / "worlds"
 
+_WARM_UP_WORLD = """world: {name: warm_up, physics_hz: 240, seed: 1}
+scene: {generator: none, ground_size_m: 100}
+vehicles:
+  - {name: d1, type: quadrotor, preset: medium, pose: {position_m: [0, 0, 0.2]}}
+"""
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Compile the simulator's kernels before any test runs (in the controller, before pytest-xdist starts its
+    workers): numba caches them in ``__pycache__``, so on a fresh checkout no test, and no process a test starts,
+    waits the seconds the first compile takes."""
+    if hasattr(config, "workerinput"):
+        return
+    from unetyemu_ecs import Simulation, load_world_text
+
+    with Simulation(load_world_text(_WARM_UP_WORLD), ros2="off") as sim:
+        sim.set_target("d1", 2.0, 0.0, 2.0)
+        sim.run(duration=0.2)
+
 
 def pip_install_plugin(plugin_dir: Path, target: Path) -> Path:
     """pip-install the plugin package ``plugin_dir`` into the private directory ``target`` (no

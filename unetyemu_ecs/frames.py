@@ -332,17 +332,34 @@ def euler_rpy_from_quat_xyzw(q: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.n
     pitch_rad : (...) float64 [rad], in [-pi/2, pi/2]
     yaw_rad : (...) float64 [rad], in (-pi, pi]
     """
-    q = quat_normalize_xyzw(q)
-    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    q = _f64(q)
+    rpy = _euler_rpy_from_quats_xyzw(np.ascontiguousarray(q.reshape(-1, 4)))
+    if q.ndim == 1:
+        return rpy[0, 0], rpy[0, 1], rpy[0, 2]
+    return tuple(rpy[:, i].reshape(q.shape[:-1]) for i in range(3))
+
+
+@jit
+def euler_rpy_of_quat_xyzw(q):
+    """:func:`euler_rpy_from_quat_xyzw` of one quaternion ``q`` (4,): ``(roll, pitch, yaw)`` [rad] (kernels call
+    this one)."""
+    n = np.sqrt((q[0] * q[0] + q[2] * q[2]) + (q[1] * q[1] + q[3] * q[3]))    # summed as quat_normalize_xyzw's einsum
+    x, y, z, w = q[0] / n, q[1] / n, q[2] / n, q[3] / n
     r00 = 1.0 - 2.0 * (y * y + z * z)
     r10 = 2.0 * (x * y + w * z)
     r20 = 2.0 * (x * z - w * y)
     r21 = 2.0 * (y * z + w * x)
     r22 = 1.0 - 2.0 * (x * x + y * y)
-    roll_rad = np.arctan2(r21, r22)
-    pitch_rad = np.arctan2(-r20, np.hypot(r00, r10))
-    yaw_rad = np.arctan2(r10, r00)
-    return roll_rad, pitch_rad, yaw_rad
+    return np.arctan2(r21, r22), np.arctan2(-r20, np.hypot(r00, r10)), np.arctan2(r10, r00)
+
+
+@jit
+def _euler_rpy_from_quats_xyzw(q):
+    """(K, 3) roll, pitch, yaw of (K, 4) quaternions xyzw."""
+    out = np.empty((q.shape[0], 3))
+    for k in range(q.shape[0]):
+        out[k, 0], out[k, 1], out[k, 2] = euler_rpy_of_quat_xyzw(q[k])
+    return out
 
 
 def yaw_rad_from_quat_xyzw(q: ArrayLike) -> np.ndarray:
@@ -360,12 +377,25 @@ def yaw_rad_from_quat_xyzw(q: ArrayLike) -> np.ndarray:
     (...) float64 [rad], in (-pi, pi]
     """
     q = _f64(q)
-    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    # atan2 is scale-invariant, so the un-normalised matrix entries are fine here. The squares come from one
-    # product: x x + y y + z z + w w and y y + z z, summed in that order
-    sq = q * q
-    n2 = sq[..., 0] + sq[..., 1] + sq[..., 2] + sq[..., 3]
-    return np.arctan2(2.0 * (x * y + w * z), n2 - 2.0 * (sq[..., 1] + sq[..., 2]))
+    yaw = _yaws_of_quats_xyzw(np.ascontiguousarray(q.reshape(-1, 4)))
+    return yaw[0] if q.ndim == 1 else yaw.reshape(q.shape[:-1])
+
+
+@jit
+def yaw_of_quat_xyzw(q):
+    """:func:`yaw_rad_from_quat_xyzw` of one quaternion ``q`` (4,) [rad] (kernels call this one)."""
+    x, y, z, w = q[0], q[1], q[2], q[3]
+    # atan2 is scale-invariant, so the un-normalised matrix entries are fine here
+    xx, yy, zz, ww = x * x, y * y, z * z, w * w
+    return np.arctan2(2.0 * (x * y + w * z), xx + yy + zz + ww - 2.0 * (yy + zz))
+
+
+@jit
+def _yaws_of_quats_xyzw(q):
+    yaw = np.empty(q.shape[0])
+    for k in range(q.shape[0]):
+        yaw[k] = yaw_of_quat_xyzw(q[k])
+    return yaw
 
 
 # ---------------------------------------------------------------------------------------------

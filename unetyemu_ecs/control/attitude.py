@@ -20,8 +20,9 @@ from typing import Annotated
 import numpy as np
 
 from ..config.schema import Ge, Gt, Le
-from ..frames import euler_rpy_from_quat_xyzw
+from ..frames import euler_rpy_of_quat_xyzw
 from ..units import GRAVITY_M_S2
+from .compiled import at, gain_arg, jit, rows_arg
 from .layers import Airframe, AttitudeSetpoint, DroneState, ThrustTorqueCommand
 
 MIN_COS_TILT = float(np.cos(np.deg2rad(60.0)))   # tilt compensation stops growing beyond 60 deg
@@ -56,48 +57,88 @@ def vertical_speed_to_thrust_frac(vz_sp_m_s: np.ndarray, vz_m_s: np.ndarray, acc
     hover_thrust_frac (1 + a_cmd / g) / max(cos_tilt, cos 60deg)``. ``hover_thrust_frac`` is the
     *unloaded* drone's ``m g / (4 F_max)``: extra load is taken up by the integral, never by
     changing parameters. Anti-windup: the integral is clamped to ``lim_vz_int_m_s`` and frozen
-    while the output is saturated in the direction the error pushes.
+    while the output is saturated in the direction the error pushes. Compiled, drone by drone
+    (:func:`vertical_speed_thrust_of`).
     """
-    err = vz_sp_m_s - vz_m_s
-    tilt = np.maximum(cos_tilt, MIN_COS_TILT)
+    values = (vz_sp_m_s, vz_m_s, acc_z_m_s2, vz_int, hover_thrust_frac, cos_tilt)
+    args = rows_arg(*values, n=max(np.size(v) for v in values))
+    return _vertical_speed_thrusts(*args, float(dt_s), *_vz_gains(gains))
 
-    def output(integral: np.ndarray) -> np.ndarray:
-        a_cmd = gains.gain_vz_p * err + gains.gain_vz_i * integral - gains.gain_vz_d * acc_z_m_s2
+
+@jit
+def vertical_speed_thrust_of(vz_sp_m_s, vz_m_s, acc_z_m_s2, vz_int, hover_thrust_frac, cos_tilt, dt_s, gain_vz_p,
+                             gain_vz_i, gain_vz_d, lim_vz_int_m_s):
+    """:func:`vertical_speed_to_thrust_frac` of one drone: ``(thrust_frac, vz_int_new)``."""
+    err = vz_sp_m_s - vz_m_s
+    tilt = max(cos_tilt, MIN_COS_TILT)
+
+    def output(integral):
+        a_cmd = gain_vz_p * err + gain_vz_i * integral - gain_vz_d * acc_z_m_s2
         return hover_thrust_frac * (1.0 + a_cmd / GRAVITY_M_S2) / tilt
 
-    trial = np.minimum(np.maximum(vz_int + err * dt_s, -gains.lim_vz_int_m_s), gains.lim_vz_int_m_s)
+    trial = min(max(vz_int + err * dt_s, -lim_vz_int_m_s), lim_vz_int_m_s)
     u = output(trial)
-    thrust = np.minimum(np.maximum(u, 0.0), 1.0)
-    if np.count_nonzero(thrust != u):          # some output saturated (or NaN): it may be winding up
-        winding = ((u > 1.0) & (err > 0.0)) | ((u < 0.0) & (err < 0.0))
-        if np.count_nonzero(winding):
-            trial = np.where(winding, vz_int, trial)
-            thrust = np.minimum(np.maximum(output(trial), 0.0), 1.0)
+    thrust = min(max(u, 0.0), 1.0)
+    if thrust != u and ((u > 1.0 and err > 0.0) or (u < 0.0 and err < 0.0)):   # saturated the way e pushes
+        trial = vz_int
+        thrust = min(max(output(trial), 0.0), 1.0)
     return thrust, trial
+
+
+@jit
+def _vertical_speed_thrusts(vz_sp_m_s, vz_m_s, acc_z_m_s2, vz_int, hover_thrust_frac, cos_tilt, dt_s, gain_vz_p,
+                            gain_vz_i, gain_vz_d, lim_vz_int_m_s):
+    n = vz_sp_m_s.shape[0]
+    thrust, integral = np.empty(n), np.empty(n)
+    for k in range(n):
+        thrust[k], integral[k] = vertical_speed_thrust_of(
+            vz_sp_m_s[k], vz_m_s[k], acc_z_m_s2[k], vz_int[k], hover_thrust_frac[k], cos_tilt[k], dt_s,
+            at(gain_vz_p, k), at(gain_vz_i, k), at(gain_vz_d, k), at(lim_vz_int_m_s, k))
+    return thrust, integral
 
 
 def attitude_to_torque_cmd(roll_sp_rad: np.ndarray, pitch_sp_rad: np.ndarray, yaw_rate_sp_rad_s: np.ndarray,
                            roll_rad: np.ndarray, pitch_rad: np.ndarray, rate_flu_rad_s: np.ndarray,
                            gains: StabilizerGains) -> np.ndarray:
-    """Return normalised ``[roll, pitch, yaw]`` torque commands (N, 3), clipped to [-1, 1].
+    """Return normalised ``[roll, pitch, yaw]`` torque commands (N, 3), clipped to [-1, 1]:
+    ``u_roll = kp (roll_sp - roll) - kd p``, ``u_pitch`` likewise, ``u_yaw = k_yaw (r_sp - r)``.
 
-    rate_flu_rad_s : (N, 3) [rad/s] measured body rates, FLU
+    rate_flu_rad_s : (N, 3) [rad/s] measured body rates, FLU. Compiled, drone by drone
+    (:func:`attitude_torque_cmd_into`).
     """
-    # written column by column into one (N, 3) array, through its transpose so that a scalar gain and an (N,)
-    # gain broadcast alike: u_roll = kp (roll_sp - roll) - kd p, u_pitch likewise, u_yaw = k_yaw (r_sp - r)
-    rate_t = rate_flu_rad_s.T
-    u = np.empty((rate_t.shape[1], 3))
-    u_t = u.T
-    np.subtract(roll_sp_rad, roll_rad, out=u_t[0])
-    np.subtract(pitch_sp_rad, pitch_rad, out=u_t[1])
-    u_rp = u_t[:2]
-    np.multiply(gains.gain_att_p, u_rp, out=u_rp)
-    np.subtract(u_rp, gains.gain_rate_d * rate_t[:2], out=u_rp)
-    u_yaw = u_t[2]
-    np.subtract(yaw_rate_sp_rad_s, rate_t[2], out=u_yaw)
-    np.multiply(gains.gain_yaw_rate_p, u_yaw, out=u_yaw)
-    np.maximum(u, -1.0, out=u)
-    return np.minimum(u, 1.0, out=u)
+    rate = np.asarray(rate_flu_rad_s, dtype=float).reshape(-1, 3)
+    args = rows_arg(roll_sp_rad, pitch_sp_rad, yaw_rate_sp_rad_s, roll_rad, pitch_rad, n=rate.shape[0])
+    return _attitude_torque_cmds(*args, rate, *_attitude_gains(gains))
+
+
+@jit
+def attitude_torque_cmd_into(roll_sp_rad, pitch_sp_rad, yaw_rate_sp_rad_s, roll_rad, pitch_rad, rate_flu_rad_s,
+                             gain_att_p, gain_rate_d, gain_yaw_rate_p, torque_cmd):
+    """:func:`attitude_to_torque_cmd` of one drone, into ``torque_cmd`` (3,)."""
+    u_roll = gain_att_p * (roll_sp_rad - roll_rad) - gain_rate_d * rate_flu_rad_s[0]
+    u_pitch = gain_att_p * (pitch_sp_rad - pitch_rad) - gain_rate_d * rate_flu_rad_s[1]
+    u_yaw = gain_yaw_rate_p * (yaw_rate_sp_rad_s - rate_flu_rad_s[2])
+    torque_cmd[0] = min(max(u_roll, -1.0), 1.0)
+    torque_cmd[1] = min(max(u_pitch, -1.0), 1.0)
+    torque_cmd[2] = min(max(u_yaw, -1.0), 1.0)
+
+
+@jit
+def _attitude_torque_cmds(roll_sp_rad, pitch_sp_rad, yaw_rate_sp_rad_s, roll_rad, pitch_rad, rate_flu_rad_s,
+                          gain_att_p, gain_rate_d, gain_yaw_rate_p):
+    u = np.empty((roll_sp_rad.shape[0], 3))
+    for k in range(roll_sp_rad.shape[0]):
+        attitude_torque_cmd_into(roll_sp_rad[k], pitch_sp_rad[k], yaw_rate_sp_rad_s[k], roll_rad[k], pitch_rad[k],
+                                 rate_flu_rad_s[k], at(gain_att_p, k), at(gain_rate_d, k), at(gain_yaw_rate_p, k), u[k])
+    return u
+
+
+def _vz_gains(g: StabilizerGains) -> tuple:
+    return gain_arg(g.gain_vz_p), gain_arg(g.gain_vz_i), gain_arg(g.gain_vz_d), gain_arg(g.lim_vz_int_m_s)
+
+
+def _attitude_gains(g: StabilizerGains) -> tuple:
+    return gain_arg(g.gain_att_p), gain_arg(g.gain_rate_d), gain_arg(g.gain_yaw_rate_p)
 
 
 def manual_to_setpoints(stick: np.ndarray, lim_tilt_rad: np.ndarray, lim_climb_m_s: np.ndarray,
@@ -130,12 +171,26 @@ def angle_rate_pd_law(sp: AttitudeSetpoint, state: DroneState, airframe: Airfram
                       memory: dict[str, np.ndarray], dt_s: float) -> tuple[ThrustTorqueCommand, dict[str, np.ndarray]]:
     """The built-in attitude layer ``angle_rate_pd`` (the paper's layer 2): AttitudeSetpoint ->
     ThrustTorqueCommand, by :func:`vertical_speed_to_thrust_frac` (memory ``vz_int_m_s``) and
-    :func:`attitude_to_torque_cmd`."""
-    roll, pitch, _ = euler_rpy_from_quat_xyzw(state.quat_enu_flu_xyzw)
-    cos_tilt = np.cos(roll) * np.cos(pitch)
-    thrust, vz_int = vertical_speed_to_thrust_frac(sp.vz_m_s, state.vel_enu_m_s[:, 2], state.acc_enu_m_s2[:, 2],
-                                                   memory["vz_int_m_s"], airframe.hover_thrust_frac, cos_tilt,
-                                                   dt_s, params)
-    torque = attitude_to_torque_cmd(sp.roll_rad, sp.pitch_rad, sp.yaw_rate_rad_s, roll, pitch, state.rate_flu_rad_s,
-                                    params)
+    :func:`attitude_to_torque_cmd` at the roll and pitch of the drones' attitude (one compiled loop)."""
+    thrust, torque, vz_int = _angle_rate_pd(
+        *rows_arg(sp.vz_m_s, sp.roll_rad, sp.pitch_rad, sp.yaw_rate_rad_s, n=state.pos_enu_m.shape[0]),
+        state.quat_enu_flu_xyzw, state.vel_enu_m_s, state.acc_enu_m_s2, state.rate_flu_rad_s, memory["vz_int_m_s"],
+        airframe.hover_thrust_frac, float(dt_s), *_vz_gains(params), *_attitude_gains(params))
     return ThrustTorqueCommand(thrust, torque), {"vz_int_m_s": vz_int}
+
+
+@jit
+def _angle_rate_pd(vz_sp_m_s, roll_sp_rad, pitch_sp_rad, yaw_rate_sp_rad_s, quat_enu_flu_xyzw, vel_enu_m_s,
+                   acc_enu_m_s2, rate_flu_rad_s, vz_int, hover_thrust_frac, dt_s, gain_vz_p, gain_vz_i, gain_vz_d,
+                   lim_vz_int_m_s, gain_att_p, gain_rate_d, gain_yaw_rate_p):
+    n = vz_sp_m_s.shape[0]
+    thrust, torque, integral = np.empty(n), np.empty((n, 3)), np.empty(n)
+    for k in range(n):
+        roll, pitch, _ = euler_rpy_of_quat_xyzw(quat_enu_flu_xyzw[k])
+        thrust[k], integral[k] = vertical_speed_thrust_of(
+            vz_sp_m_s[k], vel_enu_m_s[k, 2], acc_enu_m_s2[k, 2], vz_int[k], hover_thrust_frac[k],
+            np.cos(roll) * np.cos(pitch), dt_s, at(gain_vz_p, k), at(gain_vz_i, k), at(gain_vz_d, k),
+            at(lim_vz_int_m_s, k))
+        attitude_torque_cmd_into(roll_sp_rad[k], pitch_sp_rad[k], yaw_rate_sp_rad_s[k], roll, pitch, rate_flu_rad_s[k],
+                                 at(gain_att_p, k), at(gain_rate_d, k), at(gain_yaw_rate_p, k), torque[k])
+    return thrust, torque, integral

@@ -19,9 +19,11 @@ releasing it would let a transport thread take it and make the simulation wait f
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import Any, Callable
 
 import numba
+import numpy as np
+from numba.extending import overload
 
 _OPTIONS = {"cache": True, "error_model": "numpy"}
 
@@ -38,4 +40,31 @@ def ufunc(signature: str) -> Callable[[Callable], Callable]:
     return compile_ufunc
 
 
-__all__ = ["jit", "ufunc"]
+def at(value: Any, k: int) -> Any:
+    """A per-row parameter of row ``k``: ``value[k]`` of an (N,) array, or a scalar as it is (laws take gains of
+    either kind; in compiled code the choice is made once per type, when the kernel is compiled)."""
+    return value[k] if np.ndim(value) else value
+
+
+@overload(at)
+def _at_compiled(value, k):
+    if isinstance(value, numba.types.Array):
+        return lambda value, k: value[k]
+    return lambda value, k: value
+
+
+def gain_arg(value: float | np.ndarray) -> float | np.ndarray:
+    """A gain or other per-row parameter as a kernel takes it (see :func:`at`): a float, or a contiguous float
+    (N,) array."""
+    if type(value) is np.ndarray and value.dtype == np.float64 and value.flags.c_contiguous:
+        return value
+    return np.ascontiguousarray(value, dtype=float) if np.ndim(value) else float(value)
+
+
+def rows_arg(*values: float | np.ndarray, n: int) -> list[np.ndarray]:
+    """Per-row inputs (scalars or (n,) arrays) as the float (n,) arrays a kernel loops over."""
+    return [v if type(v) is np.ndarray and v.dtype == np.float64 and v.shape == (n,)
+            else np.broadcast_to(np.asarray(v, dtype=float).reshape(-1), (n,)) for v in values]
+
+
+__all__ = ["at", "gain_arg", "jit", "rows_arg", "ufunc"]

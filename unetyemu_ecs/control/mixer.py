@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .compiled import jit
 from .layers import Airframe, DroneState, MotorCommand, ThrustTorqueCommand
 
 MOTOR_NAMES = ("FL", "FR", "BR", "BL")
@@ -35,10 +36,6 @@ MIX_X = 0.5 * np.array([
 
 # reaction torque on the body about +z per unit thrust (FL, BR spin CCW seen from above; FR, BL CW)
 SPIN_REACTION_SIGN = np.array([-1.0, +1.0, -1.0, +1.0])
-
-# the mix's two parts as :func:`mix_x_quad` uses them (kept, not rebuilt each step)
-_MIX_RP_T = MIX_X[:, :2].T          # (2, 4) roll/pitch -> motors (a view of MIX_X, as before)
-_MIX_YAW_ROW = MIX_X[:, 2][None, :]  # (1, 4) yaw -> motors
 
 _MOTOR_DIRS_FLU = np.array([[+1.0, +1.0], [+1.0, -1.0], [-1.0, -1.0], [-1.0, +1.0]]) / np.sqrt(2.0)
 
@@ -75,38 +72,53 @@ def mix_x_quad(thrust_frac: np.ndarray, torque_cmd: np.ndarray) -> np.ndarray:
     torque_cmd : (N, 3) normalised [roll, pitch, yaw] commands
 
     A NaN in a drone's inputs zeroes that drone's command (motors off) rather than reaching the
-    motors.
+    motors. Compiled, drone by drone (:func:`mix_x_quad_into`).
     """
     thrust = np.asarray(thrust_frac, dtype=float).reshape(-1)
     torque = np.asarray(torque_cmd, dtype=float).reshape(-1, 3)
-    if np.count_nonzero(np.isfinite(thrust)) + np.count_nonzero(np.isfinite(torque)) != thrust.size + torque.size:
-        bad = ~np.isfinite(thrust) | ~np.all(np.isfinite(torque), axis=1)
-        thrust, torque = np.where(bad, 0.0, thrust), np.where(bad[:, None], 0.0, torque)
-    torque = np.minimum(np.maximum(torque, -1e6), 1e6)
-    thrust = np.minimum(np.maximum(thrust, 0.0), 1.0)
+    return _mix_x_quads(thrust, torque)
 
-    rp = torque[:, :2] @ _MIX_RP_T                            # (N, 4) roll/pitch differential
-    yw = torque[:, 2:3] * _MIX_YAW_ROW                        # (N, 4) yaw differential
 
+@jit
+def mix_x_quad_into(thrust_frac, roll_cmd, pitch_cmd, yaw_cmd, motor_frac):
+    """:func:`mix_x_quad` of one drone, into ``motor_frac`` (4,)."""
+    if not (np.isfinite(thrust_frac) and np.isfinite(roll_cmd) and np.isfinite(pitch_cmd) and np.isfinite(yaw_cmd)):
+        thrust_frac = roll_cmd = pitch_cmd = yaw_cmd = 0.0
+    roll_cmd, pitch_cmd, yaw_cmd = (min(max(roll_cmd, -1e6), 1e6), min(max(pitch_cmd, -1e6), 1e6),
+                                    min(max(yaw_cmd, -1e6), 1e6))
+    thrust = min(max(thrust_frac, 0.0), 1.0)
+    rp = np.empty(4)                                           # roll/pitch differential
+    yw = np.empty(4)                                           # yaw differential
+    for j in range(4):
+        rp[j] = roll_cmd * MIX_X[j, 0] + pitch_cmd * MIX_X[j, 1]
+        yw[j] = yaw_cmd * MIX_X[j, 2]
     # 1. roll/pitch alone must fit in the [0, 1] range: scale down uniformly if their spread is > 1
-    rp_max, rp_min = np.maximum.reduce(rp, axis=1), np.minimum.reduce(rp, axis=1)
+    rp_max, rp_min = rp.max(), rp.min()
     spread = rp_max - rp_min
-    if np.count_nonzero(spread > 1.0):
-        shrink = np.where(spread > 1.0, 1.0 / np.maximum(spread, 1e-12), 1.0)
-        rp = rp * shrink[:, None]
+    if spread > 1.0:
+        shrink = 1.0 / max(spread, 1e-12)
+        rp *= shrink
         rp_max, rp_min = rp_max * shrink, rp_min * shrink
     # 2. shift the collective as little as needed so that thrust + rp lies in [0, 1]
-    thrust = np.minimum(np.maximum(thrust, -rp_min), 1.0 - rp_max)   # between the lowest and highest admissible
-    base = thrust[:, None] + rp                                # (N, 4) in [0, 1]
+    thrust = min(max(thrust, -rp_min), 1.0 - rp_max)           # between the lowest and highest admissible
     # 3. yaw with the largest scale in [0, 1] that keeps every motor in [0, 1]: per motor, the room
-    #    left in the direction its yaw share pushes, over that share (inf where the share is below 1e-12)
-    room = np.empty_like(base)
-    room.fill(np.inf)
-    np.divide(np.where(yw > 0.0, 1.0 - base, -base), yw, out=room, where=np.abs(yw) > 1e-12)
-    scale = np.minimum(np.maximum(np.minimum.reduce(room, axis=1), 0.0), 1.0)
-    out = base + scale[:, None] * yw
-    # 4. numerical safety only
-    return np.minimum(np.maximum(out, 0.0), 1.0)
+    #    left in the direction its yaw share pushes, over that share (none where the share is below 1e-12)
+    room = np.inf
+    for j in range(4):
+        if abs(yw[j]) > 1e-12:
+            base = thrust + rp[j]
+            room = min(room, ((1.0 - base) if yw[j] > 0.0 else -base) / yw[j])
+    scale = min(max(room, 0.0), 1.0)
+    for j in range(4):
+        motor_frac[j] = min(max(thrust + rp[j] + scale * yw[j], 0.0), 1.0)    # 4. numerical safety only
+
+
+@jit
+def _mix_x_quads(thrust_frac, torque_cmd):
+    out = np.empty((thrust_frac.shape[0], 4))
+    for k in range(thrust_frac.shape[0]):
+        mix_x_quad_into(thrust_frac[k], torque_cmd[k, 0], torque_cmd[k, 1], torque_cmd[k, 2], out[k])
+    return out
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -14,8 +14,9 @@ from typing import Annotated
 import numpy as np
 
 from ..config.schema import Ge, Gt, Le
-from ..frames import row_norm, yaw_rad_from_quat_xyzw
-from ..units import GRAVITY_M_S2, wrap_angle_rad
+from ..frames import yaw_of_quat_xyzw
+from ..units import GRAVITY_M_S2, wrap_angle_of_rad
+from .compiled import at, gain_arg, jit, rows_arg
 from .layers import Airframe, AttitudeSetpoint, DroneState, PositionSetpoint
 
 
@@ -33,29 +34,6 @@ class GuidanceGains:
     lim_decel_m_s2: Annotated[float, Gt(0.0), Le(100.0)] = 2.5      # braking that sizes the approach speed
 
 
-def _all(mask: np.ndarray) -> bool:
-    """``mask.all()`` for a bool array (a quarter of its cost on a few rows)."""
-    return np.count_nonzero(mask) == mask.size
-
-
-def _ratio_or_inf(num: np.ndarray, den: np.ndarray, tiny: float = 1e-9) -> np.ndarray:
-    """``num / den`` where ``den > tiny``, +inf elsewhere (no division by a vanishing denominator)."""
-    if type(num) is not np.ndarray or type(den) is not np.ndarray or num.shape != den.shape \
-            or num.dtype != np.float64 or den.dtype != np.float64 or not den.ndim:
-        num, den = np.broadcast_arrays(np.asarray(num, dtype=float), np.asarray(den, dtype=float))
-    ok = den > tiny
-    if np.count_nonzero(ok) == ok.size and den.ndim:
-        return num / den
-    return np.divide(num, den, out=np.full(den.shape, np.inf), where=ok)
-
-
-def _per_row(gain: float | np.ndarray) -> float | np.ndarray:
-    """A gain that multiplies (N, k) vectors: scalars as they are, (N,) arrays as an (N, 1) column."""
-    if type(gain) is not np.ndarray or gain.dtype != np.float64:
-        gain = np.asarray(gain, dtype=float)
-    return gain[..., None] if gain.ndim else float(gain)
-
-
 def position_to_velocity_sp(pos_sp_enu_m: np.ndarray, pos_enu_m: np.ndarray, dist_to_go_m: np.ndarray,
                             lim_speed_h_m_s: np.ndarray, lim_climb_m_s: np.ndarray, lim_descent_m_s: np.ndarray,
                             gains: GuidanceGains) -> np.ndarray:
@@ -67,49 +45,46 @@ def position_to_velocity_sp(pos_sp_enu_m: np.ndarray, pos_enu_m: np.ndarray, dis
     the square-root profile brakes for the end without overshoot), then scaled down so that the
     horizontal part stays within ``lim_speed_h`` and the vertical part within the climb/descent
     limits. Because the whole vector is scaled, a climb leg with a small sideways error asks for
-    a small sideways speed (no cross-track gain blow-up).
+    a small sideways speed (no cross-track gain blow-up). Compiled, drone by drone
+    (:func:`line_of_sight_velocity_into`).
     """
-    delta = pos_sp_enu_m - pos_enu_m
-    dist = row_norm(delta)
-    ok = dist > 1e-9
-    inv = 1.0 / dist if np.count_nonzero(ok) == ok.size else np.divide(1.0, dist, out=np.zeros_like(dist), where=ok)
-    unit = delta * inv[:, None]
-    d_go = np.maximum(dist_to_go_m, dist)
-    speed = np.minimum(gains.gain_pos_p * d_go, np.sqrt(2.0 * gains.lim_decel_m_s2 * d_go))
-    uz = unit[:, 2]
-    h = np.hypot(unit[:, 0], unit[:, 1])
-    up = uz >= 0.0
-    n_up = np.count_nonzero(up)
-    if n_up == up.size and getattr(lim_climb_m_s, "shape", None) == up.shape:
-        v_lim = lim_climb_m_s
-    elif n_up == 0 and getattr(lim_descent_m_s, "shape", None) == up.shape:
-        v_lim = lim_descent_m_s
-    else:
-        v_lim = np.where(up, lim_climb_m_s, lim_descent_m_s)
-    speed = np.minimum(speed, _ratio_or_inf(lim_speed_h_m_s, h))
-    speed = np.minimum(speed, _ratio_or_inf(v_lim, np.abs(uz)))
-    return unit * speed[:, None]
+    pos_sp, pos = _vectors(pos_sp_enu_m, 3), _vectors(pos_enu_m, 3)
+    n = pos.shape[0]
+    out = np.empty((n, 3))
+    limits = rows_arg(dist_to_go_m, lim_speed_h_m_s, lim_climb_m_s, lim_descent_m_s, n=n)
+    _line_of_sight_velocities(pos_sp, pos, *limits, gain_arg(gains.gain_pos_p), gain_arg(gains.lim_decel_m_s2), out)
+    return out
 
 
-def _velocity_to_accel(vel_sp_enu_m_s: np.ndarray, vel_enu_m_s: np.ndarray, vel_int: np.ndarray, dt_s: float,
-                       lim_acc: np.ndarray, gains: GuidanceGains) -> tuple[np.ndarray, np.ndarray, bool]:
-    """:func:`velocity_to_accel_sp` given ``lim_acc = g tan(lim_tilt)``; also whether a row was limited."""
-    if vel_sp_enu_m_s.shape == vel_enu_m_s.shape:       # the same differences, contiguous (cheaper from here on)
-        err = np.ascontiguousarray((vel_sp_enu_m_s - vel_enu_m_s)[:, :2])
-    else:
-        err = vel_sp_enu_m_s[:, :2] - vel_enu_m_s[:, :2]
-    lim_int = gains.lim_vel_int_m_s2 / np.maximum(gains.gain_vel_i, 1e-12)
-    trial = vel_int + err * dt_s
-    ratio = lim_int / np.maximum(row_norm(trial), 1e-12)
-    if np.count_nonzero(ratio >= 1.0) != ratio.size:     # else min(1, ratio) is 1 and leaves trial as it is
-        trial *= np.minimum(1.0, ratio)[:, None]
-    acc = _per_row(gains.gain_vel_p) * err + _per_row(gains.gain_vel_i) * trial
-    norm = row_norm(acc)
-    limited = norm > lim_acc
-    if np.count_nonzero(limited):
-        acc *= np.where(limited, lim_acc / np.maximum(norm, 1e-12), 1.0)[:, None]
-        return acc, np.where(limited[:, None], vel_int, trial), True
-    return acc, trial, False
+@jit
+def line_of_sight_velocity_into(pos_sp_enu_m, pos_enu_m, dist_to_go_m, lim_speed_h_m_s, lim_climb_m_s,
+                                lim_descent_m_s, gain_pos_p, lim_decel_m_s2, vel_sp_enu_m_s):
+    """:func:`position_to_velocity_sp` of one drone, into ``vel_sp_enu_m_s`` (3,)."""
+    dx, dy, dz = pos_sp_enu_m[0] - pos_enu_m[0], pos_sp_enu_m[1] - pos_enu_m[1], pos_sp_enu_m[2] - pos_enu_m[2]
+    dist = np.sqrt(dx * dx + dy * dy + dz * dz)
+    inv = 1.0 / dist if dist > 1e-9 else 0.0
+    ux, uy, uz = dx * inv, dy * inv, dz * inv
+    d_go = max(dist_to_go_m, dist)
+    speed = min(gain_pos_p * d_go, np.sqrt(2.0 * lim_decel_m_s2 * d_go))
+    v_lim = lim_climb_m_s if uz >= 0.0 else lim_descent_m_s
+    speed = min(speed, _ratio_or_inf(lim_speed_h_m_s, np.hypot(ux, uy)))
+    speed = min(speed, _ratio_or_inf(v_lim, abs(uz)))
+    vel_sp_enu_m_s[0], vel_sp_enu_m_s[1], vel_sp_enu_m_s[2] = ux * speed, uy * speed, uz * speed
+
+
+@jit
+def _ratio_or_inf(num, den):
+    """``num / den`` where ``den > 1e-9``, +inf elsewhere (no division by a vanishing denominator)."""
+    return num / den if den > 1e-9 else np.inf
+
+
+@jit
+def _line_of_sight_velocities(pos_sp_enu_m, pos_enu_m, dist_to_go_m, lim_speed_h_m_s, lim_climb_m_s, lim_descent_m_s,
+                              gain_pos_p, lim_decel_m_s2, out):
+    for k in range(pos_enu_m.shape[0]):
+        line_of_sight_velocity_into(pos_sp_enu_m[k], pos_enu_m[k], dist_to_go_m[k], lim_speed_h_m_s[k],
+                                    lim_climb_m_s[k], lim_descent_m_s[k], at(gain_pos_p, k), at(lim_decel_m_s2, k),
+                                    out[k])
 
 
 def velocity_to_accel_sp(vel_sp_enu_m_s: np.ndarray, vel_enu_m_s: np.ndarray, vel_int: np.ndarray, dt_s: float,
@@ -117,28 +92,45 @@ def velocity_to_accel_sp(vel_sp_enu_m_s: np.ndarray, vel_enu_m_s: np.ndarray, ve
     """Horizontal acceleration setpoint (N, 2) [m/s^2], ENU, and the new velocity integral (N, 2).
 
     PI on the horizontal velocity error, limited to ``g tan(lim_tilt)`` in magnitude (direction
-    kept); the integral does not grow while the output is limited (anti-windup).
+    kept); the integral does not grow while the output is limited (anti-windup). Compiled, drone by
+    drone (:func:`velocity_pi_into`).
     """
-    acc, trial, _ = _velocity_to_accel(vel_sp_enu_m_s, vel_enu_m_s, vel_int, dt_s,
-                                       GRAVITY_M_S2 * np.tan(lim_tilt_rad), gains)
-    return acc, trial
+    vel_sp, vel = np.asarray(vel_sp_enu_m_s, dtype=float), np.asarray(vel_enu_m_s, dtype=float)
+    integral = _vectors(vel_int, 2)
+    n = integral.shape[0]
+    acc, new_int = np.empty((n, 2)), np.empty((n, 2))
+    lim_acc = GRAVITY_M_S2 * np.tan(rows_arg(lim_tilt_rad, n=n)[0])
+    _velocity_pis(vel_sp, vel, integral, float(dt_s), lim_acc, *_pi_gains(gains), acc, new_int)
+    return acc, new_int
 
 
-def _accel_to_tilt(acc: np.ndarray, yaw_rad: np.ndarray, lim_acc: np.ndarray | None
-                   ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`accel_to_tilt_sp` of float (N, 2) accelerations given ``lim_acc = g tan(lim_tilt)``; None: none of
-    them is above it (they come from :func:`_velocity_to_accel`, which limited none)."""
-    if lim_acc is not None:
-        norm = row_norm(acc)
-        if np.count_nonzero(norm > lim_acc):
-            acc = acc * np.where(norm > lim_acc, lim_acc / np.maximum(norm, 1e-12), 1.0)[:, None]
-    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
-    ax, ay = acc[:, 0], acc[:, 1]
-    a_fwd = c * ax + s * ay
-    a_left = c * ay - s * ax                                      # == -s a_x + c a_y exactly
-    pitch = np.arctan(a_fwd / GRAVITY_M_S2)
-    roll = np.arctan(-a_left * np.cos(pitch) / GRAVITY_M_S2)
-    return roll, pitch
+@jit
+def velocity_pi_into(vel_sp_enu_m_s, vel_enu_m_s, vel_int, dt_s, lim_acc_m_s2, gain_vel_p, gain_vel_i,
+                     lim_vel_int_m_s2, acc_sp_h_enu_m_s2, vel_int_new):
+    """:func:`velocity_to_accel_sp` of one drone given ``lim_acc_m_s2 = g tan(lim_tilt)``, into
+    ``acc_sp_h_enu_m_s2`` (2,) and ``vel_int_new`` (2,)."""
+    ex, ey = vel_sp_enu_m_s[0] - vel_enu_m_s[0], vel_sp_enu_m_s[1] - vel_enu_m_s[1]
+    lim_int = lim_vel_int_m_s2 / max(gain_vel_i, 1e-12)
+    tx, ty = vel_int[0] + ex * dt_s, vel_int[1] + ey * dt_s
+    ratio = lim_int / max(np.sqrt(tx * tx + ty * ty), 1e-12)
+    if ratio < 1.0:                                    # the integral's acceleration within its limit
+        tx, ty = tx * ratio, ty * ratio
+    ax, ay = gain_vel_p * ex + gain_vel_i * tx, gain_vel_p * ey + gain_vel_i * ty
+    norm = np.sqrt(ax * ax + ay * ay)
+    if norm > lim_acc_m_s2:                            # limited: direction kept, the integral frozen
+        scale = lim_acc_m_s2 / max(norm, 1e-12)
+        ax, ay = ax * scale, ay * scale
+        tx, ty = vel_int[0], vel_int[1]
+    acc_sp_h_enu_m_s2[0], acc_sp_h_enu_m_s2[1] = ax, ay
+    vel_int_new[0], vel_int_new[1] = tx, ty
+
+
+@jit
+def _velocity_pis(vel_sp_enu_m_s, vel_enu_m_s, vel_int, dt_s, lim_acc_m_s2, gain_vel_p, gain_vel_i, lim_vel_int_m_s2,
+                  acc, vel_int_new):
+    for k in range(vel_int.shape[0]):
+        velocity_pi_into(vel_sp_enu_m_s[k], vel_enu_m_s[k], vel_int[k], dt_s, lim_acc_m_s2[k], at(gain_vel_p, k),
+                         at(gain_vel_i, k), at(lim_vel_int_m_s2, k), acc[k], vel_int_new[k])
 
 
 def accel_to_tilt_sp(acc_sp_h_enu_m_s2: np.ndarray, yaw_rad: np.ndarray, lim_tilt_rad: np.ndarray
@@ -148,18 +140,71 @@ def accel_to_tilt_sp(acc_sp_h_enu_m_s2: np.ndarray, yaw_rad: np.ndarray, lim_til
     The acceleration is rotated into the heading frame (forward, left); ``pitch = atan(a_fwd / g)``
     and ``roll = atan(-a_left cos(pitch) / g)`` point the thrust axis exactly along
     ``(a_fwd, a_left, g)``, so the total tilt is ``atan(|a| / g)``: limiting ``|a|`` to
-    ``g tan(lim_tilt)`` (direction kept) keeps the tilt within ``lim_tilt``.
+    ``g tan(lim_tilt)`` (direction kept) keeps the tilt within ``lim_tilt``. Compiled, drone by drone
+    (:func:`tilt_of_accel`).
     """
-    return _accel_to_tilt(np.asarray(acc_sp_h_enu_m_s2, dtype=float), yaw_rad, GRAVITY_M_S2 * np.tan(lim_tilt_rad))
+    acc = _vectors(acc_sp_h_enu_m_s2, 2)
+    yaw, lim_tilt = rows_arg(yaw_rad, lim_tilt_rad, n=acc.shape[0])
+    return _tilts_of_accels(acc, yaw, GRAVITY_M_S2 * np.tan(lim_tilt))
+
+
+@jit
+def tilt_of_accel(ax_m_s2, ay_m_s2, yaw_rad, lim_acc_m_s2):
+    """:func:`accel_to_tilt_sp` of one drone given ``lim_acc_m_s2 = g tan(lim_tilt)``: ``(roll, pitch)`` [rad]."""
+    norm = np.sqrt(ax_m_s2 * ax_m_s2 + ay_m_s2 * ay_m_s2)
+    if norm > lim_acc_m_s2:
+        scale = lim_acc_m_s2 / max(norm, 1e-12)
+        ax_m_s2, ay_m_s2 = ax_m_s2 * scale, ay_m_s2 * scale
+    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
+    a_fwd = c * ax_m_s2 + s * ay_m_s2
+    a_left = c * ay_m_s2 - s * ax_m_s2
+    pitch = np.arctan(a_fwd / GRAVITY_M_S2)
+    return np.arctan(-a_left * np.cos(pitch) / GRAVITY_M_S2), pitch
+
+
+@jit
+def _tilts_of_accels(acc, yaw_rad, lim_acc_m_s2):
+    n = acc.shape[0]
+    roll, pitch = np.empty(n), np.empty(n)
+    for k in range(n):
+        roll[k], pitch[k] = tilt_of_accel(acc[k, 0], acc[k, 1], yaw_rad[k], lim_acc_m_s2[k])
+    return roll, pitch
 
 
 def heading_to_yaw_rate_sp(yaw_sp_rad: np.ndarray, yaw_rad: np.ndarray, lim_yaw_rate_rad_s: np.ndarray,
                            gains: GuidanceGains) -> np.ndarray:
-    """Yaw-rate setpoint (N,) [rad/s] turning the shortest way to ``yaw_sp`` (NaN or infinite = hold: 0)."""
+    """Yaw-rate setpoint (N,) [rad/s] turning the shortest way to ``yaw_sp`` (NaN or infinite = hold: 0).
+    Compiled, drone by drone (:func:`yaw_rate_to_heading`)."""
+    n = max(np.size(yaw_sp_rad), np.size(yaw_rad), np.size(lim_yaw_rate_rad_s))
+    rate = _yaw_rates_to_headings(*rows_arg(yaw_sp_rad, yaw_rad, lim_yaw_rate_rad_s, n=n), gain_arg(gains.gain_yaw_p))
+    return rate if np.ndim(yaw_sp_rad) or np.ndim(yaw_rad) or np.ndim(lim_yaw_rate_rad_s) else rate[0]
+
+
+@jit
+def yaw_rate_to_heading(yaw_sp_rad, yaw_rad, lim_yaw_rate_rad_s, gain_yaw_p):
+    """:func:`heading_to_yaw_rate_sp` of one drone [rad/s]."""
     err = yaw_sp_rad - yaw_rad
-    finite = np.isfinite(err)
-    err = wrap_angle_rad(err if _all(finite) else np.where(finite, err, 0.0))
-    return np.minimum(np.maximum(gains.gain_yaw_p * err, -lim_yaw_rate_rad_s), lim_yaw_rate_rad_s)
+    if not np.isfinite(err):
+        err = 0.0
+    err = wrap_angle_of_rad(err)
+    return min(max(gain_yaw_p * err, -lim_yaw_rate_rad_s), lim_yaw_rate_rad_s)
+
+
+@jit
+def _yaw_rates_to_headings(yaw_sp_rad, yaw_rad, lim_yaw_rate_rad_s, gain_yaw_p):
+    out = np.empty(yaw_rad.shape[0])
+    for k in range(yaw_rad.shape[0]):
+        out[k] = yaw_rate_to_heading(yaw_sp_rad[k], yaw_rad[k], lim_yaw_rate_rad_s[k], at(gain_yaw_p, k))
+    return out
+
+
+def _pi_gains(g: GuidanceGains) -> tuple:
+    return gain_arg(g.gain_vel_p), gain_arg(g.gain_vel_i), gain_arg(g.lim_vel_int_m_s2)
+
+
+def _vectors(values: np.ndarray, k: int) -> np.ndarray:
+    """(N, k) float rows."""
+    return np.asarray(values, dtype=float).reshape(-1, k)
 
 
 def body_velocity_to_enu_sp(vel_flu_m_s: np.ndarray, yaw_rad: np.ndarray, lim_climb_m_s: np.ndarray,
@@ -191,33 +236,43 @@ def cascade_pid_law(sp: PositionSetpoint, state: DroneState, airframe: Airframe,
     leg's speed limits and the airframe's climb/descent limits; rows flying a velocity take it as
     given. Then the velocity PI (:func:`velocity_to_accel_sp`, memory ``vel_int_m_s``) and the tilt
     mapping (:func:`accel_to_tilt_sp`); heading P (:func:`heading_to_yaw_rate_sp`) or the commanded
-    yaw rate, within the yaw-rate limit.
+    yaw rate, within the yaw-rate limit. One compiled loop over the drones.
     """
-    to_pos = sp.flies_to_position
-    n_to_pos = np.count_nonzero(to_pos)
-    pos = state.pos_enu_m
-    if n_to_pos == 0:                             # every row flies its velocity
-        vel_sp = np.array(sp.vel_enu_m_s, dtype=float)
-    else:                                         # (when every row flies to a position, no np.where is needed)
-        every = n_to_pos == to_pos.size
-        target = sp.pos_enu_m if every else np.where(to_pos[:, None], sp.pos_enu_m, pos)
-        dist_to_go = sp.dist_to_go_m if every else np.where(to_pos, sp.dist_to_go_m, 0.0)
-        vel_sp = position_to_velocity_sp(target, pos, dist_to_go, sp.speed_limit_m_s[:, 0],
-                                         np.minimum(sp.speed_limit_m_s[:, 1], airframe.lim_climb_m_s),
-                                         np.minimum(sp.speed_limit_m_s[:, 2], airframe.lim_descent_m_s), params)
-        if not every:
-            vel_sp = np.where(to_pos[:, None], vel_sp, sp.vel_enu_m_s)
-    lim_acc = GRAVITY_M_S2 * np.tan(airframe.max_tilt_rad)
-    acc_h, vel_int, limited = _velocity_to_accel(vel_sp, state.vel_enu_m_s, memory["vel_int_m_s"], dt_s, lim_acc,
-                                                 params)
-    yaw = yaw_rad_from_quat_xyzw(state.quat_enu_flu_xyzw)
-    roll_sp, pitch_sp = _accel_to_tilt(acc_h, yaw, lim_acc if limited else None)
-    hold_heading = np.isfinite(sp.yaw_rad)
-    lim_rate = airframe.lim_yaw_rate_rad_s
-    if _all(hold_heading):
-        yaw_rate = heading_to_yaw_rate_sp(sp.yaw_rad, yaw, lim_rate, params)
-    else:
-        yaw_rate = np.where(hold_heading,
-                            heading_to_yaw_rate_sp(np.where(hold_heading, sp.yaw_rad, yaw), yaw, lim_rate, params),
-                            np.minimum(np.maximum(sp.yaw_rate_rad_s, -lim_rate), lim_rate))
-    return AttitudeSetpoint(vel_sp[:, 2], roll_sp, pitch_sp, yaw_rate), {"vel_int_m_s": vel_int}
+    n = state.pos_enu_m.shape[0]
+    out = np.empty((n, 4))
+    vel_int = np.empty((n, 2))
+    _cascade_pid(sp.pos_enu_m, sp.vel_enu_m_s, sp.speed_limit_m_s, sp.dist_to_go_m, sp.yaw_rad, sp.yaw_rate_rad_s,
+                 state.pos_enu_m, state.vel_enu_m_s, state.quat_enu_flu_xyzw, airframe.max_tilt_rad,
+                 airframe.lim_climb_m_s, airframe.lim_descent_m_s, airframe.lim_yaw_rate_rad_s,
+                 _vectors(memory["vel_int_m_s"], 2), float(dt_s), gain_arg(params.gain_pos_p),
+                 gain_arg(params.lim_decel_m_s2), *_pi_gains(params), gain_arg(params.gain_yaw_p), out, vel_int)
+    return AttitudeSetpoint(out[:, 0], out[:, 1], out[:, 2], out[:, 3]), {"vel_int_m_s": vel_int}
+
+
+@jit
+def _cascade_pid(pos_sp_enu_m, vel_sp_enu_m_s, speed_limit_m_s, dist_to_go_m, yaw_sp_rad, yaw_rate_cmd_rad_s,
+                 pos_enu_m, vel_enu_m_s, quat_enu_flu_xyzw, max_tilt_rad, lim_climb_m_s, lim_descent_m_s,
+                 lim_yaw_rate_rad_s, vel_int, dt_s, gain_pos_p, lim_decel_m_s2, gain_vel_p, gain_vel_i,
+                 lim_vel_int_m_s2, gain_yaw_p, out, vel_int_new):
+    """``out`` (N, 4): vz, roll, pitch and yaw-rate setpoints; ``vel_int_new`` (N, 2)."""
+    vel_sp = np.empty(3)
+    acc = np.empty(2)
+    for k in range(pos_enu_m.shape[0]):
+        if np.isfinite(pos_sp_enu_m[k, 0]):                  # flies to a position
+            line_of_sight_velocity_into(pos_sp_enu_m[k], pos_enu_m[k], dist_to_go_m[k], speed_limit_m_s[k, 0],
+                                        min(speed_limit_m_s[k, 1], lim_climb_m_s[k]),
+                                        min(speed_limit_m_s[k, 2], lim_descent_m_s[k]), at(gain_pos_p, k),
+                                        at(lim_decel_m_s2, k), vel_sp)
+        else:                                                 # flies its velocity
+            vel_sp[:] = vel_sp_enu_m_s[k]
+        lim_acc = GRAVITY_M_S2 * np.tan(max_tilt_rad[k])
+        velocity_pi_into(vel_sp, vel_enu_m_s[k], vel_int[k], dt_s, lim_acc, at(gain_vel_p, k), at(gain_vel_i, k),
+                         at(lim_vel_int_m_s2, k), acc, vel_int_new[k])
+        yaw = yaw_of_quat_xyzw(quat_enu_flu_xyzw[k])
+        roll, pitch = tilt_of_accel(acc[0], acc[1], yaw, lim_acc)
+        lim_rate = lim_yaw_rate_rad_s[k]
+        if np.isfinite(yaw_sp_rad[k]):                        # hold a heading
+            yaw_rate = yaw_rate_to_heading(yaw_sp_rad[k], yaw, lim_rate, at(gain_yaw_p, k))
+        else:
+            yaw_rate = min(max(yaw_rate_cmd_rad_s[k], -lim_rate), lim_rate)
+        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = vel_sp[2], roll, pitch, yaw_rate
