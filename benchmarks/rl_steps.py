@@ -62,7 +62,7 @@ def peer_available() -> bool:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")          # pkg_resources' deprecation warning
-            importlib.import_module("gym_pybullet_drones")   # needs setuptools' pkg_resources
+            importlib.import_module("gym_pybullet_drones.envs")   # needs setuptools' pkg_resources
     except ImportError:
         return False
     return True

@@ -34,7 +34,7 @@ REFERENCE_PEER_RTF_CPU = {1: 14.0, 10: 1.62, 100: 0.158, 250: 0.062}
 
 def peer_available() -> bool:
     try:
-        import gym_pybullet_drones  # noqa: F401
+        import gym_pybullet_drones.envs  # noqa: F401  (needs setuptools' pkg_resources)
     except ImportError:
         return False
     return True
