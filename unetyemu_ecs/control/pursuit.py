@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..frames import row_norm
+from .compiled import jit
 
 
 @dataclass(frozen=True)
@@ -86,7 +86,7 @@ class RouteGeometry:
     """
 
     __slots__ = ("width", "rows", "base", "cum", "total", "last", "last_seg", "vec", "length2", "seg_len",
-                 "cum_start", "len_u", "ok_t", "ok_u", "all_ok", "first", "ad")
+                 "cum_start", "len_u", "ok_t", "ok_u")
 
     def __init__(self, route_enu_m: np.ndarray, n_points: np.ndarray, speeds_m_s: np.ndarray) -> None:
         m, w = route_enu_m.shape[0], route_enu_m.shape[1]
@@ -126,101 +126,86 @@ class RouteGeometry:
         self.total[rows] = cum[idx, n - 1]
         self.last[rows] = route[idx, n - 1]
         self.last_seg[rows] = n - 2
-        # every segment long enough for both divisions (then no row needs their masked form)
-        self.all_ok = (np.count_nonzero(self.ok_t) == self.ok_t.size, np.count_nonzero(self.ok_u) == self.ok_u.size)
-        if w == 2:       # one segment per route: its columns as contiguous arrays, no gather needed
-            self.first = (self.vec[:, 0:3].copy(), self.vec[:, 3:6].copy(), self.vec[:, 6:9].copy(),
-                          self.vec[:, 9:12].copy())
-        else:            # what the segment search gathers: start point and difference
-            self.ad = self.vec[:, 0:6].copy()
-
-
-def _divide_or_one(num: np.ndarray, den: np.ndarray, ok: np.ndarray, all_ok: bool) -> np.ndarray:
-    """``num / den`` where ``ok`` (den > 1e-12), 1 elsewhere (``all_ok``: ``ok`` is all True)."""
-    return num / den if all_ok else np.divide(num, den, out=np.ones(den.shape[0]), where=ok)
-
-
-def _project_kept(pos: np.ndarray, a: np.ndarray, d: np.ndarray, length2: np.ndarray, ok: np.ndarray, all_ok: bool
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_project` on segments a -> a + d whose ``length2`` (d.d) and ``ok`` (length2 > 1e-12) are kept;
-    return (t in [0,1], the foot of the perpendicular)."""
-    t = _divide_or_one(np.einsum("mi,mi->m", pos - a, d), length2, ok, all_ok)
-    t = np.minimum(np.maximum(t, 0.0), 1.0)
-    return t, a + t[:, None] * d
 
 
 def pursue(pos_enu_m: np.ndarray, segment: np.ndarray, lead_m: np.ndarray, final_zone_min_m: np.ndarray,
            geometry: RouteGeometry, rows: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
     """:func:`pure_pursuit` of routes whose :class:`RouteGeometry` the caller keeps, bit for bit: the fields
     of its :class:`PursuitResult` as a tuple (target, segment, speed limits, distance to go, cross-track,
-    distance to the last point).
+    distance to the last point). Compiled, drone by drone (:func:`pursue_into`).
 
     ``rows`` : the geometry's rows of the M drones (None: all of them, in order); ``segment`` (M,) >= 0;
     ``lead_m`` (M,); ``final_zone_min_m`` (M,) is ``np.maximum(final_zone_m, 1e-9)``.
     """
     g = geometry
     m = pos_enu_m.shape[0]
-    all_ok_t, all_ok_u = g.all_ok                  # (for a subset of the rows: true if true for all)
-    if g.width == 2:                               # one segment: no search, no gather for all rows
-        seg = np.zeros(m, dtype=np.intp)
-        if rows is None:
-            (a, d, v, dv), length2, seg_len, cum_seg, len_u = g.first, g.length2, g.seg_len, g.cum_start, g.len_u
-            ok_t, ok_u, total, last = g.ok_t, g.ok_u, g.total, g.last
-        else:
-            vec = g.vec.take(rows, axis=0)
-            a, d, v, dv = vec[:, 0:3], vec[:, 3:6], vec[:, 6:9], vec[:, 9:12]
-            length2, seg_len, cum_seg, len_u = g.length2[rows], g.seg_len[rows], g.cum_start[rows], g.len_u[rows]
-            ok_t, ok_u, total, last = g.ok_t[rows], g.ok_u[rows], g.total[rows], g.last[rows]
-        t, foot = _project_kept(pos_enu_m, a, d, length2, ok_t, all_ok_t)
-        s_proj = cum_seg + t * seg_len
-        remaining = np.maximum(total - s_proj, 0.0)
-        lead = lead_m * np.minimum(remaining / final_zone_min_m, 1.0)             # remaining >= 0
-        s_target = np.minimum(s_proj + lead, total)
-        # the target's segment is segment 0, whose cumulative start is +0.0: s_target - 0.0 == s_target
-        u = _divide_or_one(s_target, len_u, ok_u, all_ok_u)
-        a_j, d_j = a, d
-    else:
-        base = g.base if rows is None else g.base[rows]
-        last_seg = g.last_seg if rows is None else g.last_seg[rows]
-        seg = np.minimum(segment.astype(np.intp), last_seg)
-        # Advance while the drone has passed the end of its segment, or is nearer to the next one
-        # (both segments projected in one batch of 2M rows: the current ones, then the next ones).
-        pos2 = None
-        for _ in range(g.width):
-            can = seg < last_seg
-            if not np.count_nonzero(can):
-                break
-            if pos2 is None:
-                pos2 = np.concatenate((pos_enu_m, pos_enu_m))
-                base2 = np.concatenate((base, base))
-            # the next segment of a drone on its route's last is its own (then ``can`` is False)
-            flat2 = base2 + np.concatenate((seg, np.minimum(seg + 1, g.width - 2)))
-            ad2 = g.ad.take(flat2, axis=0)
-            t2, foot2 = _project_kept(pos2, ad2[:, 0:3], ad2[:, 3:6], g.length2.take(flat2), g.ok_t.take(flat2),
-                                      all_ok_t)
-            dist2 = row_norm(pos2 - foot2)
-            step = can & ((t2[:m] >= 1.0) | ((dist2[m:] <= dist2[:m]) & (t2[m:] > 0.0)))
-            if not np.count_nonzero(step):
-                break
-            seg = seg + step
-        flat = base + seg
-        vec = g.vec.take(flat, axis=0)
-        a, d, v, dv = vec[:, 0:3], vec[:, 3:6], vec[:, 6:9], vec[:, 9:12]
-        total, last = (g.total, g.last) if rows is None else (g.total[rows], g.last[rows])
-        t, foot = _project_kept(pos_enu_m, a, d, g.length2.take(flat), g.ok_t.take(flat), all_ok_t)
-        s_proj = g.cum_start.take(flat) + t * g.seg_len.take(flat)
-        remaining = np.maximum(total - s_proj, 0.0)
-        lead = lead_m * np.minimum(remaining / final_zone_min_m, 1.0)             # remaining >= 0
-        s_target = np.minimum(s_proj + lead, total)
-        # Segment holding s_target: last j with cum[j] <= s_target, limited to valid segments.
-        cum = g.cum if rows is None else g.cum[rows]
-        j = np.count_nonzero(cum <= s_target[:, None] + 1e-12, axis=1) - 1
-        flat_j = base + np.minimum(np.maximum(j, 0), last_seg)
-        vec_j = g.vec.take(flat_j, axis=0)
-        u = _divide_or_one(s_target - g.cum_start.take(flat_j), g.len_u.take(flat_j), g.ok_u.take(flat_j), all_ok_u)
-        a_j, d_j = vec_j[:, 0:3], vec_j[:, 3:6]
-    u = np.minimum(np.maximum(u, 0.0), 1.0)
-    # the drone's distance to its segment and to the last point: one norm of 2M rows
-    dist = row_norm(np.concatenate((pos_enu_m - foot, last - pos_enu_m)))
-    cross = dist[:m]
-    return a_j + u[:, None] * d_j, seg, v + t[:, None] * dv, remaining + cross, cross, dist[m:]
+    target, speeds = np.empty((m, 3)), np.empty((m, 3))
+    seg = np.empty(m, dtype=np.intp)
+    to_go, cross, to_final = np.empty(m), np.empty(m), np.empty(m)
+    geo_rows = g.rows if rows is None else np.asarray(rows, dtype=np.intp)
+    _pursue_rows(np.asarray(pos_enu_m, dtype=float), np.asarray(segment).astype(np.intp, copy=False),
+                 np.asarray(lead_m, dtype=float), np.asarray(final_zone_min_m, dtype=float), geo_rows, g.width,
+                 g.last_seg.astype(np.intp, copy=False), g.vec, g.length2, g.ok_t, g.seg_len, g.cum_start, g.len_u,
+                 g.ok_u, g.cum, g.total, g.last, target, seg, speeds, to_go, cross, to_final)
+    return target, seg, speeds, to_go, cross, to_final
+
+
+@jit
+def _project(pos, vec, length2, ok):
+    """Projection of ``pos`` (3,) on the segment ``a -> a + d`` of ``vec`` (a, d, ...) whose ``length2`` (d.d) and
+    ``ok`` (length2 > 1e-12) are kept: t in [0, 1] (1 on a segment too short to divide by) and the distance from
+    ``pos`` to the foot of the perpendicular; sums in numpy's einsum order, clamps as numpy's (signed zeros)."""
+    e0, e1, e2 = pos[0] - vec[0], pos[1] - vec[1], pos[2] - vec[2]
+    t = ((e0 * vec[3] + e2 * vec[5]) + e1 * vec[4]) / length2 if ok else 1.0
+    t = min(1.0, max(0.0, t))
+    f0, f1, f2 = pos[0] - (vec[0] + t * vec[3]), pos[1] - (vec[1] + t * vec[4]), pos[2] - (vec[2] + t * vec[5])
+    return t, np.sqrt((f0 * f0 + f2 * f2) + f1 * f1)
+
+
+@jit
+def pursue_into(pos, segment, lead_m, final_zone_min_m, g, width, last_seg, vec, length2, ok_t, seg_len, cum_start,
+                len_u, ok_u, cum, total, last, target, speeds):
+    """:func:`pursue` of one drone on geometry row ``g``: writes ``target`` (3,) and ``speeds`` (3,), returns
+    (segment, distance to go, cross-track, distance to the last point)."""
+    base = g * (width - 1)
+    seg = min(segment, last_seg[g])
+    # advance while the drone has passed the end of its segment, or is nearer to the next one
+    for _ in range(width):
+        if not seg < last_seg[g]:
+            break
+        cur, nxt = base + seg, base + min(seg + 1, width - 2)
+        t_cur, dist_cur = _project(pos, vec[cur], length2[cur], ok_t[cur])
+        t_next, dist_next = _project(pos, vec[nxt], length2[nxt], ok_t[nxt])
+        if not (t_cur >= 1.0 or (dist_next <= dist_cur and t_next > 0.0)):
+            break
+        seg += 1
+    flat = base + seg
+    v = vec[flat]
+    t, cross = _project(pos, v, length2[flat], ok_t[flat])
+    s_proj = cum_start[flat] + t * seg_len[flat]
+    remaining = max(0.0, total[g] - s_proj)
+    lead = lead_m * min(1.0, remaining / final_zone_min_m)               # remaining >= 0
+    s_target = min(total[g], s_proj + lead)
+    # the segment holding s_target: the last j with cum[j] <= s_target, limited to the valid segments
+    j = -1
+    for w in range(width):
+        if cum[g, w] <= s_target + 1e-12:
+            j += 1
+    flat_j = base + min(last_seg[g], max(0, j))
+    u = (s_target - cum_start[flat_j]) / len_u[flat_j] if ok_u[flat_j] else 1.0
+    u = min(1.0, max(0.0, u))
+    vj = vec[flat_j]
+    for i in range(3):
+        target[i] = vj[i] + u * vj[3 + i]
+        speeds[i] = v[6 + i] + t * v[9 + i]
+    e0, e1, e2 = last[g, 0] - pos[0], last[g, 1] - pos[1], last[g, 2] - pos[2]
+    return seg, remaining + cross, cross, np.sqrt((e0 * e0 + e2 * e2) + e1 * e1)
+
+
+@jit
+def _pursue_rows(pos, segment, lead_m, final_zone_min_m, geo_rows, width, last_seg, vec, length2, ok_t, seg_len,
+                 cum_start, len_u, ok_u, cum, total, last, target, seg, speeds, to_go, cross, to_final):
+    for k in range(pos.shape[0]):
+        seg[k], to_go[k], cross[k], to_final[k] = pursue_into(
+            pos[k], segment[k], lead_m[k], final_zone_min_m[k], geo_rows[k], width, last_seg, vec, length2, ok_t,
+            seg_len, cum_start, len_u, ok_u, cum, total, last, target[k], speeds[k])
