@@ -172,11 +172,17 @@ def R_from_quat_xyzw(q: ArrayLike) -> np.ndarray:
 
 
 @jit
+def _unit_quat_xyzw(q):
+    """The components of ``q`` (4,) xyzw scaled to unit norm, as :func:`quat_normalize_xyzw` computes them."""
+    n = np.sqrt((q[0] * q[0] + q[2] * q[2]) + (q[1] * q[1] + q[3] * q[3]))    # summed in its einsum's order
+    return q[0] / n, q[1] / n, q[2] / n, q[3] / n
+
+
+@jit
 def set_R_from_quat_xyzw(q, R):
     """Write into ``R`` (3, 3) the rotation matrix of the quaternion ``q`` (4,) xyzw, normalised first: the
     textbook formulas (:func:`R_from_quat_xyzw` for arrays; kernels call this one)."""
-    n = np.sqrt((q[0] * q[0] + q[2] * q[2]) + (q[1] * q[1] + q[3] * q[3]))    # summed as quat_normalize_xyzw's einsum
-    x, y, z, w = q[0] / n, q[1] / n, q[2] / n, q[3] / n
+    x, y, z, w = _unit_quat_xyzw(q)
     R[0, 0] = 1.0 - 2.0 * (y * y + z * z)
     R[0, 1] = 2.0 * (x * y - w * z)
     R[0, 2] = 2.0 * (x * z + w * y)
@@ -343,8 +349,7 @@ def euler_rpy_from_quat_xyzw(q: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.n
 def euler_rpy_of_quat_xyzw(q):
     """:func:`euler_rpy_from_quat_xyzw` of one quaternion ``q`` (4,): ``(roll, pitch, yaw)`` [rad] (kernels call
     this one)."""
-    n = np.sqrt((q[0] * q[0] + q[2] * q[2]) + (q[1] * q[1] + q[3] * q[3]))    # summed as quat_normalize_xyzw's einsum
-    x, y, z, w = q[0] / n, q[1] / n, q[2] / n, q[3] / n
+    x, y, z, w = _unit_quat_xyzw(q)
     r00 = 1.0 - 2.0 * (y * y + z * z)
     r10 = 2.0 * (x * y + w * z)
     r20 = 2.0 * (x * z - w * y)
