@@ -81,36 +81,41 @@ def mix_x_quad(thrust_frac: np.ndarray, torque_cmd: np.ndarray) -> np.ndarray:
 
 @jit
 def mix_x_quad_into(thrust_frac, roll_cmd, pitch_cmd, yaw_cmd, motor_frac):
-    """:func:`mix_x_quad` of one drone, into ``motor_frac`` (4,)."""
+    """:func:`mix_x_quad` of one drone, into ``motor_frac`` (4,). Every clamp ``min(hi, max(lo, x))`` and running
+    maximum or minimum is ordered as numpy's ``minimum(maximum(x, lo), hi)`` and ``.reduce``, so that the result is
+    numpy's to the sign of a zero."""
     if not (np.isfinite(thrust_frac) and np.isfinite(roll_cmd) and np.isfinite(pitch_cmd) and np.isfinite(yaw_cmd)):
         thrust_frac = roll_cmd = pitch_cmd = yaw_cmd = 0.0
-    roll_cmd, pitch_cmd, yaw_cmd = (min(max(roll_cmd, -1e6), 1e6), min(max(pitch_cmd, -1e6), 1e6),
-                                    min(max(yaw_cmd, -1e6), 1e6))
-    thrust = min(max(thrust_frac, 0.0), 1.0)
+    roll_cmd, pitch_cmd, yaw_cmd = (min(1e6, max(-1e6, roll_cmd)), min(1e6, max(-1e6, pitch_cmd)),
+                                    min(1e6, max(-1e6, yaw_cmd)))
+    thrust = min(1.0, max(0.0, thrust_frac))
     rp = np.empty(4)                                           # roll/pitch differential
     yw = np.empty(4)                                           # yaw differential
     for j in range(4):
         rp[j] = roll_cmd * MIX_X[j, 0] + pitch_cmd * MIX_X[j, 1]
         yw[j] = yaw_cmd * MIX_X[j, 2]
+    rp_max, rp_min = rp[0], rp[0]
+    for j in range(1, 4):
+        rp_max, rp_min = max(rp[j], rp_max), min(rp[j], rp_min)
     # 1. roll/pitch alone must fit in the [0, 1] range: scale down uniformly if their spread is > 1
-    rp_max, rp_min = rp.max(), rp.min()
     spread = rp_max - rp_min
     if spread > 1.0:
-        shrink = 1.0 / max(spread, 1e-12)
-        rp *= shrink
+        shrink = 1.0 / max(1e-12, spread)
+        for j in range(4):
+            rp[j] *= shrink
         rp_max, rp_min = rp_max * shrink, rp_min * shrink
     # 2. shift the collective as little as needed so that thrust + rp lies in [0, 1]
-    thrust = min(max(thrust, -rp_min), 1.0 - rp_max)           # between the lowest and highest admissible
+    thrust = min(1.0 - rp_max, max(-rp_min, thrust))           # between the lowest and highest admissible
     # 3. yaw with the largest scale in [0, 1] that keeps every motor in [0, 1]: per motor, the room
     #    left in the direction its yaw share pushes, over that share (none where the share is below 1e-12)
     room = np.inf
     for j in range(4):
-        if abs(yw[j]) > 1e-12:
-            base = thrust + rp[j]
-            room = min(room, ((1.0 - base) if yw[j] > 0.0 else -base) / yw[j])
-    scale = min(max(room, 0.0), 1.0)
+        base = thrust + rp[j]
+        share_room = (((1.0 - base) if yw[j] > 0.0 else -base) / yw[j]) if abs(yw[j]) > 1e-12 else np.inf
+        room = share_room if j == 0 else min(share_room, room)
+    scale = min(1.0, max(0.0, room))
     for j in range(4):
-        motor_frac[j] = min(max(thrust + rp[j] + scale * yw[j], 0.0), 1.0)    # 4. numerical safety only
+        motor_frac[j] = min(1.0, max(0.0, thrust + rp[j] + scale * yw[j]))    # 4. numerical safety only
 
 
 @jit
