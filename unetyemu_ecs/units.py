@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .control.compiled import jit, ufunc
+from .control.compiled import jit
 
 GRAVITY_M_S2 = 9.81
 AIR_DENSITY_KG_M3 = 1.225
@@ -74,14 +74,12 @@ def wrap_angle_rad(angle_rad: ArrayLike) -> np.ndarray:
     -------
     (...) float64 [rad], in (-pi, pi]
     """
-    angle_rad = np.asarray(angle_rad, dtype=np.float64)
-    return _wrap_angles_rad(angle_rad)[()]
+    return _wrap_angle(np.asarray(angle_rad, dtype=np.float64))[()]
 
 
-def _wrap_angle(angle_rad: float) -> float:
+def _wrap_angle(angle_rad: np.ndarray | float) -> np.ndarray | float:
     # np.mod returns [0, 2*pi) for a positive divisor, so pi - mod(...) lies in (-pi, pi].
     return np.pi - np.mod(np.pi - angle_rad, 2.0 * np.pi)
 
 
 wrap_angle_of_rad = jit(_wrap_angle)                 # one angle (kernels call this one)
-_wrap_angles_rad = ufunc("f8(f8)")(_wrap_angle)

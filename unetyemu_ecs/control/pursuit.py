@@ -81,11 +81,11 @@ class RouteGeometry:
     - ``ok_t``, ``ok_u`` (M (W-1),) bool: ``length2 > 1e-12``, ``len_u > 1e-12``;
 
     per route ``cum`` (M, W), ``total`` (M,) length to the last valid point, ``last`` (M, 3) last valid
-    point, ``last_seg`` (M,) its last valid segment, ``base`` (M,) the flat row of its segment 0. Every
+    point, ``last_seg`` (M,) its last valid segment. Every
     value is computed with the operations :func:`pure_pursuit` uses, row by row (bit for bit the same).
     """
 
-    __slots__ = ("width", "rows", "base", "cum", "total", "last", "last_seg", "vec", "length2", "seg_len",
+    __slots__ = ("width", "rows", "cum", "total", "last", "last_seg", "vec", "length2", "seg_len",
                  "cum_start", "len_u", "ok_t", "ok_u")
 
     def __init__(self, route_enu_m: np.ndarray, n_points: np.ndarray, speeds_m_s: np.ndarray) -> None:
@@ -93,9 +93,8 @@ class RouteGeometry:
         k = m * (w - 1)
         self.width = w
         self.rows = np.arange(m)
-        self.base = self.rows * (w - 1)
         self.cum, self.total, self.last = np.zeros((m, w)), np.zeros(m), np.zeros((m, 3))
-        self.last_seg = np.zeros(m, dtype=np.result_type(n_points, 2))
+        self.last_seg = np.zeros(m, dtype=np.intp)
         self.vec = np.zeros((k, 12))
         self.length2, self.seg_len, self.cum_start, self.len_u = np.zeros(k), np.zeros(k), np.zeros(k), np.zeros(k)
         self.ok_t, self.ok_u = np.zeros(k, dtype=bool), np.zeros(k, dtype=bool)
@@ -145,7 +144,7 @@ def pursue(pos_enu_m: np.ndarray, segment: np.ndarray, lead_m: np.ndarray, final
     geo_rows = g.rows if rows is None else np.asarray(rows, dtype=np.intp)
     _pursue_rows(np.asarray(pos_enu_m, dtype=float), np.asarray(segment).astype(np.intp, copy=False),
                  np.asarray(lead_m, dtype=float), np.asarray(final_zone_min_m, dtype=float), geo_rows, g.width,
-                 g.last_seg.astype(np.intp, copy=False), g.vec, g.length2, g.ok_t, g.seg_len, g.cum_start, g.len_u,
+                 g.last_seg, g.vec, g.length2, g.ok_t, g.seg_len, g.cum_start, g.len_u,
                  g.ok_u, g.cum, g.total, g.last, target, seg, speeds, to_go, cross, to_final)
     return target, seg, speeds, to_go, cross, to_final
 

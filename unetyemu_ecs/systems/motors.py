@@ -60,7 +60,6 @@ class MotorSystem(FleetSystem):
         super().__init__()
         self._surface_layout: object = None
         self._surface: SurfaceIndex | None = None
-        self._live = np.zeros(0, dtype=bool)          # which drones' motors may turn (set each step)
 
     def gather(self, ctx: StepContext) -> None:
         (comps,) = self.components
@@ -73,6 +72,7 @@ class MotorSystem(FleetSystem):
         self._alpha = np.where(tau > 0.0, 1.0 - np.exp(-ctx.dt_s / np.maximum(tau, 1e-12)), 1.0)   # lag per step
         arms = np.array([c.arm_length_m for c in comps])
         self._torque_matrix = rotor_torque_matrix_flu(motor_positions_flu_m(arms), self._kappa)   # (M, 3, 4)
+        self._live = np.zeros(self.rows.size, dtype=bool)       # which drones' motors may turn (set each step)
         self._gather_ground_effect(ctx, comps, arms)
 
     def _gather_ground_effect(self, ctx: StepContext, comps: list[QuadrotorMotors], arms: np.ndarray) -> None:
@@ -110,8 +110,6 @@ class MotorSystem(FleetSystem):
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
         rows = self.rows
-        if self._live.shape != rows.shape:
-            self._live = np.zeros(rows.shape, dtype=bool)
         lag_motor_thrusts(rows, self._f_max, self._follows_pack, self._rated_v, self._alpha, self._ge and self._lag,
                           f.flight_mode, f.motors_enabled, f.pack_voltage_v, f.motor_frac_cmd, f.motor_thrust_cmd_n,
                           f.motor_thrust_n, f.ground_effect_factor, self._live)
