@@ -33,6 +33,7 @@ import numpy as np
 from ..components.body import RigidBody
 from ..components.flight import GuidanceLimits, QuadrotorMotors
 from ..control.attitude import manual_to_setpoints
+from ..control.compiled import jit
 from ..control.mixer import torque_per_unit_cmd_flu_n_m
 from ..control.layers import (OUTPUT_OF_LAYER, Airframe, AttitudeSetpoint, DroneState, Layer, PositionSetpoint,
                               ThrustTorqueCommand)
@@ -41,7 +42,7 @@ from ..plugins import ControllerPlugin
 from ..units import GRAVITY_M_S2
 from ..world import StepContext
 from .fleet_system import FleetSystem, read_only, stack_params, take_params
-from .flight_state import MODE_ATTITUDE, MODE_AUTO, MODE_DISARMED, MODE_MANUAL, MODE_VELOCITY
+from .flight_state import MODE_ATTITUDE, MODE_AUTO, MODE_DISARMED, MODE_MANUAL, MODE_VELOCITY, FlightMode
 
 # the fleet arrays of a law's typed inputs, in the order of their fields
 DRONE_STATE_ARRAYS = ("pos_enu_m", "vel_enu_m_s", "acc_enu_m_s2", "quat_enu_flu_xyzw", "rate_flu_rad_s")
@@ -63,6 +64,49 @@ def finite_or_zero(values: Any) -> np.ndarray:
     return out if np.isfinite(out).all() else np.where(np.isfinite(out), out, 0.0)
 
 
+@jit
+def _unit_fractions_into(values, out):
+    """``out`` (N, K) = ``values`` (N, K) clamped to [0, 1], NaN and infinities 0 (``finite_or_zero`` then the
+    clamp, ordered as numpy's ``minimum(maximum(x, 0), 1)``)."""
+    for k in range(values.shape[0]):
+        for j in range(values.shape[1]):
+            v = values[k, j]
+            out[k, j] = min(1.0, max(0.0, v)) if np.isfinite(v) else 0.0
+
+
+@jit
+def _note_entries(mode, engaged, mode_seen, entered):
+    """``entered`` (N,) bool: the engaged rows whose mode differs from ``mode_seen``, which becomes ``mode``;
+    returns how many entered."""
+    n = 0
+    for k in range(mode.shape[0]):
+        e = engaged[k] and mode[k] != mode_seen[k]
+        entered[k] = e
+        n += e
+        mode_seen[k] = mode[k]
+    return n
+
+
+@jit
+def _position_engaged(mode, has_route, active):
+    """``active`` (N,) bool: the rows flying AUTO with a route or VELOCITY; returns how many."""
+    n = 0
+    for k in range(mode.shape[0]):
+        a = (mode[k] == MODE_AUTO and has_route[k]) or mode[k] == MODE_VELOCITY
+        active[k] = a
+        n += a
+    return n
+
+
+@jit
+def _count_modes(mode, counts):
+    """``counts[m]``: how many rows are in flight mode ``m`` (modes outside the array's range are not counted)."""
+    counts[:] = 0
+    for k in range(mode.shape[0]):
+        if 0 <= mode[k] < counts.shape[0]:
+            counts[mode[k]] += 1
+
+
 class ControllerSystem(FleetSystem):
     """Runs one registered controller for the vehicles that chose it; subclassed per layer, then
     per controller by :func:`controller_system`."""
@@ -81,6 +125,7 @@ class ControllerSystem(FleetSystem):
             self._memory_names[name] = array_name
         if self.mode_array:
             self._mode_seen = getattr(f, self.mode_array)[self.rows].copy()
+            self._entered = np.zeros(self.rows.size, dtype=bool)
         self._views: dict[type, Any] = {}
 
     def fleet_view(self, ctx: StepContext, cls: type, names: tuple[str, ...], rows: slice | np.ndarray) -> Any:
@@ -97,20 +142,22 @@ class ControllerSystem(FleetSystem):
     def restart_on_entry(self, ctx: StepContext, mode: np.ndarray, engaged: np.ndarray) -> None:
         """Reset the memory of the rows that entered a mode this layer controls since the last step
         (``mode``: the rows' modes now, from ``mode_array``; ``engaged``: the rows the layer controls)."""
-        entered = engaged & (mode != self._mode_seen)
-        self._mode_seen = mode.copy()
-        if entered.any():
-            self.reset_memory(ctx, self.rows[entered])
+        if _note_entries(mode, engaged, self._mode_seen, self._entered):
+            self.reset_memory(ctx, self.rows[self._entered])
 
     def read_memory(self, ctx: StepContext, rows: slice | np.ndarray) -> dict[str, np.ndarray]:
         """The law's memory of ``rows``: copies (a law may update them in place)."""
-        return {name: getattr(ctx.fleet, arr)[rows].copy() for name, arr in self._memory_names.items()}
+        f = ctx.fleet
+        return {name: getattr(f, arr)[rows].copy() for name, arr in self._memory_names.items()}
 
-    def write_memory(self, ctx: StepContext, rows: np.ndarray, memory: dict[str, np.ndarray]) -> None:
+    def write_memory(self, ctx: StepContext, rows: slice | np.ndarray, memory: dict[str, np.ndarray]) -> None:
+        f = ctx.fleet
         for name, arr in self._memory_names.items():
-            if name not in memory:
-                raise KeyError(f"controller {self.key!r} returned no memory {name!r}")
-            getattr(ctx.fleet, arr)[rows] = memory[name]
+            try:
+                value = memory[name]
+            except KeyError:
+                raise KeyError(f"controller {self.key!r} returned no memory {name!r}") from None
+            getattr(f, arr)[rows] = value
 
     def reset_memory(self, ctx: StepContext, rows: np.ndarray) -> None:
         """Back to the declared initial values for ``rows``."""
@@ -173,17 +220,25 @@ class PositionControllerSystem(DroneControllerSystem):
     order = 10
     mode_array = "flight_mode"
 
+    def gather(self, ctx: StepContext) -> None:
+        super().gather(ctx)
+        self._active = np.zeros(self.rows.size, dtype=bool)
+
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
         mode = f.flight_mode[self.sel]
-        active = ((mode == MODE_AUTO) & f.has_route[self.sel]) | (mode == MODE_VELOCITY)
+        active = self._active
+        n_active = _position_engaged(mode, f.has_route[self.sel], active)
         self.restart_on_entry(ctx, mode, active)
-        k = np.flatnonzero(active)
-        if k.size == 0:
+        if n_active == 0:
             return
-        r = self.sel if k.size == self.rows.size else self.rows[k]
+        if n_active == self.rows.size:
+            r, params, airframe = self.sel, self.params, self.airframe
+        else:
+            k = active.nonzero()[0]
+            r = self.rows[k]
+            params, airframe = self.subset(k)
         sp = self.fleet_view(ctx, PositionSetpoint, POSITION_SETPOINT_ARRAYS, r)
-        params, airframe = self.subset(k)
         out: AttitudeSetpoint = self.call_law(ctx, sp, self.state(ctx, r), airframe, params, r)
         f.vz_sp_m_s[r] = out.vz_m_s
         f.roll_sp_rad[r] = out.roll_rad
@@ -204,12 +259,18 @@ class AttitudeControllerSystem(DroneControllerSystem):
     phase = Phase.STABILIZE
     order = 0
 
+    def gather(self, ctx: StepContext) -> None:
+        super().gather(ctx)
+        self._mode_counts = np.zeros(len(FlightMode), dtype=np.intp)
+
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
         r = self.sel
         mode = f.flight_mode[r]
-        manual = mode == MODE_MANUAL
-        if manual.any():
+        counts = self._mode_counts
+        _count_modes(mode, counts)
+        if counts[MODE_MANUAL]:
+            manual = mode == MODE_MANUAL
             a, rm = self.airframe, self.rows[manual]
             vz_sp, roll_sp, pitch_sp, yaw_rate_sp = manual_to_setpoints(
                 f.stick[rm], a.max_tilt_rad[manual], a.lim_climb_m_s[manual], a.lim_descent_m_s[manual],
@@ -218,18 +279,19 @@ class AttitudeControllerSystem(DroneControllerSystem):
             f.roll_sp_rad[rm] = roll_sp
             f.pitch_sp_rad[rm] = pitch_sp
             f.yaw_rate_sp_rad_s[rm] = yaw_rate_sp
-        attitude = mode == MODE_ATTITUDE
-        if attitude.any():
+        attitude = None
+        if counts[MODE_ATTITUDE]:
+            attitude = mode == MODE_ATTITUDE
             ra = self.rows[attitude]
             f.vz_sp_m_s[ra] = f.vel_enu_m_s[ra, 2]
         sp = self.fleet_view(ctx, AttitudeSetpoint, ATTITUDE_SETPOINT_ARRAYS, r)
         out: ThrustTorqueCommand = self.call_law(ctx, sp, self.state(ctx, r), self.airframe, self.params, r)
-        armed = mode != MODE_DISARMED
-        thrust = np.where(attitude, f.thrust_cmd_frac[r], out.thrust_frac) if attitude.any() else out.thrust_frac
-        if armed.all():
+        thrust = out.thrust_frac if attitude is None else np.where(attitude, f.thrust_cmd_frac[r], out.thrust_frac)
+        if counts[MODE_DISARMED] == 0:
             f.thrust_frac_sp[r] = thrust
             f.torque_cmd[r] = out.torque_cmd
         else:
+            armed = mode != MODE_DISARMED
             f.thrust_frac_sp[r] = np.where(armed, thrust, 0.0)
             f.torque_cmd[r] = np.where(armed[:, None], out.torque_cmd, 0.0)
             self.reset_memory(ctx, self.rows[~armed])
@@ -246,7 +308,11 @@ class MixerSystem(DroneControllerSystem):
         r = self.sel
         cmd = self.fleet_view(ctx, ThrustTorqueCommand, ("thrust_frac_sp", "torque_cmd"), r)
         out = self.call_law(ctx, cmd, self.state(ctx, r), self.airframe, self.params, r)
-        f.motor_frac_cmd[r] = np.minimum(np.maximum(finite_or_zero(out.motor_frac), 0.0), 1.0)
+        motor_frac = np.asarray(out.motor_frac, dtype=float)
+        if motor_frac.shape == (self.rows.size, 4) and isinstance(r, slice):
+            _unit_fractions_into(motor_frac, f.motor_frac_cmd[r])     # NaN and infinities 0, clamped to [0, 1]
+        else:
+            f.motor_frac_cmd[r] = np.minimum(np.maximum(finite_or_zero(motor_frac), 0.0), 1.0)
         if self._memory_names:
             disarmed = f.flight_mode[r] == MODE_DISARMED
             if disarmed.any():

@@ -31,6 +31,7 @@ import numpy as np
 from ..components.body import FleetSlot, Identity, RigidBody
 from ..components.flight import EnergyModel, GuidanceLimits, PayloadBay
 from ..components.mission import MissionRuntime
+from ..control.compiled import jit
 from ..navigation.params import FlightParams, FlightParamsSpec, params_from_spec
 from ..navigation.state import NavRuntime
 from ..phases import Phase
@@ -628,44 +629,67 @@ def arm_blocks(f: Any, rows: np.ndarray, fence_why: list[str],
 
 
 class _RowLimits:
-    """:func:`arming_limits` of some rows, with what the per-step check needs of them worked out once."""
+    """:func:`arming_limits` of some rows (kept with the rows: they change only with the ECS)."""
 
-    __slots__ = ("low_frac", "has_battery", "all_battery", "max_payload", "any_bay")
+    __slots__ = ("low_frac", "max_payload")
 
     def __init__(self, low_frac: np.ndarray, max_payload: np.ndarray) -> None:
         self.low_frac = low_frac
-        self.has_battery = np.isfinite(low_frac)
-        self.all_battery = bool(self.has_battery.all())
         self.max_payload = max_payload
-        self.any_bay = not bool((max_payload == np.inf).all())    # no bay anywhere: nothing is ever overweight
 
 
-_CODE_IN_AIR = np.int8(ArmBlock.IN_AIR)
-_CODE_OUTSIDE, _CODE_MOTORS = int(ArmBlock.OUTSIDE_FENCE), int(ArmBlock.MOTORS_DISABLED)
+_CODE_IN_AIR, _CODE_OUTSIDE = int(ArmBlock.IN_AIR), int(ArmBlock.OUTSIDE_FENCE)
+_CODE_MOTORS = int(ArmBlock.MOTORS_DISABLED)
 _CODE_OVERWEIGHT, _CODE_LOW = int(ArmBlock.OVERWEIGHT), int(ArmBlock.LOW_BATTERY)
 
 
 def _arm_codes(f: Any, sel: slice | np.ndarray, lim: _RowLimits, outside: np.ndarray | None) -> np.ndarray:
     """The ArmBlock codes (int8) of the rows ``sel`` selects: the first failing check in the order low battery,
-    overweight, motors disabled, outside the fence (``outside``; None: nowhere), in the air; NONE if none fails.
-    Each check's code is written over the lower-priority ones, the in-air base first; a check that fails
-    nowhere (the usual case) costs one count."""
+    overweight, motors disabled, outside the fence (``outside``; None: nowhere), in the air; NONE if none fails."""
     landed = f.landed_state[sel]
-    in_air = (landed != LANDED_ON_GROUND) & (landed != LANDED_UNDEFINED)
-    codes = in_air.view(np.int8) * _CODE_IN_AIR
-    if outside is not None:
-        codes[outside] = _CODE_OUTSIDE
-    motors_off = ~f.motors_enabled[sel]
-    if np.count_nonzero(motors_off):
-        codes[motors_off] = _CODE_MOTORS
-        if lim.any_bay:
-            codes[motors_off & (f.payload_kg[sel] > lim.max_payload)] = _CODE_OVERWEIGHT
-    low = f.low_battery[sel] | (f.soc_frac[sel] < lim.low_frac)
-    if not lim.all_battery:
-        low &= lim.has_battery
-    if np.count_nonzero(low):
-        codes[low] = _CODE_LOW
+    codes = np.empty(landed.shape[0], dtype=np.int8)
+    _arm_codes_into(landed, f.motors_enabled[sel], f.payload_kg[sel], f.low_battery[sel], f.soc_frac[sel],
+                    lim.low_frac, lim.max_payload, outside, codes)
     return codes
+
+
+@jit
+def _arm_codes_into(landed_state, motors_enabled, payload_kg, low_battery, soc_frac, low_frac, max_payload, outside,
+                    codes):
+    """:func:`_arm_codes` row by row, each check's code written over the lower-priority ones (a row without a
+    battery has low_frac -inf and is never low; one without a bay max_payload inf and is never overweight)."""
+    for k in range(codes.shape[0]):
+        code = 0
+        if landed_state[k] != LANDED_ON_GROUND and landed_state[k] != LANDED_UNDEFINED:
+            code = _CODE_IN_AIR
+        if outside is not None and outside[k]:
+            code = _CODE_OUTSIDE
+        if not motors_enabled[k]:
+            code = _CODE_OVERWEIGHT if payload_kg[k] > max_payload[k] else _CODE_MOTORS
+        if (low_battery[k] or soc_frac[k] < low_frac[k]) and np.isfinite(low_frac[k]):
+            code = _CODE_LOW
+        codes[k] = code
+
+
+@jit
+def _busy_rows_into(flight_mode, landed_state, nav_state, stream_or_sticks, busy):
+    """``busy`` (N,) bool: disarmed, on the ground, or flown from a stream or sticks (``stream_or_sticks`` by
+    nav_state); returns how many."""
+    n = 0
+    for k in range(busy.shape[0]):
+        b = (flight_mode[k] == MODE_DISARMED or landed_state[k] == LANDED_ON_GROUND
+             or stream_or_sticks[np.uint8(nav_state[k])])
+        busy[k] = b
+        n += b
+    return n
+
+
+@jit
+def _count_true(mask):
+    n = 0
+    for k in range(mask.shape[0]):
+        n += mask[k]
+    return n
 
 
 # -- land detector ---------------------------------------------------------------------------
@@ -826,6 +850,7 @@ class NavigatorSystem(FleetSystem):
         rows = self.rows
         self._row_limits = _RowLimits(low_frac[rows], max_payload[rows])    # kept with the rows
         self._rows_list, self._ents = rows.tolist(), self.entities.tolist()
+        self._busy = np.zeros(rows.size, dtype=bool)
 
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
@@ -833,7 +858,7 @@ class NavigatorSystem(FleetSystem):
         navs, params_of = self.components
         m = len(navs)
         home_set = f.home_set[sel]
-        if np.count_nonzero(home_set) != m:
+        if _count_true(home_set) != m:
             unset = self.rows[~home_set]
             f.home_enu_m[unset] = f.pos_enu_m[unset]
             f.home_set[unset] = True
@@ -841,21 +866,21 @@ class NavigatorSystem(FleetSystem):
         any_fenced = any(fenced)
         outside = None
         if any_fenced:
-            outside = [bool(fence_breach(f, row, nav, params)) if on else False
-                       for on, row, nav, params in zip(fenced, self._rows_list, navs, params_of)]
-        f.arm_block[sel] = _arm_codes(f, sel, self._row_limits,
-                                      None if outside is None else np.array(outside, dtype=bool))
+            outside = np.array([bool(fence_breach(f, row, nav, params)) if on else False
+                                for on, row, nav, params in zip(fenced, self._rows_list, navs, params_of)], dtype=bool)
+        f.arm_block[sel] = _arm_codes(f, sel, self._row_limits, outside)
         # The rows with something to do one by one: disarmed, on the ground (auto-disarm), in a navigator mode,
         # flying a stream or sticks (OFFBOARD, POSCTL, MANUAL), or with a fence to enforce. Every other drone
         # flies on with nothing to breach: only its fence_ok is set (what the loop below would do).
-        nav_states, landed = f.nav_state[sel], f.landed_state[sel]
-        busy = ((f.flight_mode[sel] == MODE_DISARMED) | (landed == LANDED_ON_GROUND)
-                | _STREAM_OR_STICKS[nav_states.view(np.uint8)])
-        if [nav for nav in navs if nav.mode]:
-            busy |= np.array([bool(nav.mode) for nav in navs], dtype=bool)
-        if any_fenced:
-            busy |= np.array([bool(on) for on in fenced], dtype=bool)
-        n_busy = np.count_nonzero(busy)
+        landed = f.landed_state[sel]
+        busy = self._busy
+        n_busy = _busy_rows_into(f.flight_mode[sel], landed, f.nav_state[sel], _STREAM_OR_STICKS, busy)
+        moded = [k for k, nav in enumerate(navs) if nav.mode]
+        if moded or any_fenced:
+            busy[moded] = True
+            if any_fenced:
+                busy |= np.array(fenced, dtype=bool)
+            n_busy = _count_true(busy)
         if n_busy == 0:
             for nav in navs:
                 nav.fence_ok = True
