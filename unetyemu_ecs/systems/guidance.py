@@ -12,8 +12,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..components.flight import GuidanceLimits
+from ..control.compiled import jit
 from ..control.position import body_velocity_to_enu_sp
-from ..control.pursuit import RouteGeometry, pursue
+from ..control.pursuit import RouteGeometry, pursue, pursue_into
 from ..frames import yaw_rad_from_quat_xyzw
 from ..phases import Phase
 from ..world import StepContext
@@ -50,6 +51,7 @@ class RouteFollowingSystem(FleetSystem):
         self._route = np.zeros((m, 2, 3))
         self._speeds = np.ones((m, 2, 3))
         self._geometry = RouteGeometry(self._route, self._n_points, self._speeds)     # kept with the routes
+        self._changed, self._auto, self._velocity = (np.zeros(m, dtype=bool) for _ in range(3))
 
     def _load_routes(self, f, changed: np.ndarray) -> None:
         """Copy new routes of the ``changed`` local indices into the padded arrays."""
@@ -80,37 +82,41 @@ class RouteFollowingSystem(FleetSystem):
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
         rows = self.sel
-        count = np.count_nonzero                         # (a quarter of the cost of .any() / .all() on a few rows)
-        changed = f.route_stamp[rows] != self._stamps
-        if count(changed):
-            self._load_routes(f, np.flatnonzero(changed))
-        mode = f.flight_mode[rows]
-        auto = (mode == MODE_AUTO) & f.has_route[rows]
-        n_auto = count(auto)
+        changed, auto, velocity = self._changed, self._auto, self._velocity
+        n_changed, n_auto, n_velocity = _route_rows(f.route_stamp[rows], self._stamps, f.flight_mode[rows],
+                                                    f.has_route[rows], changed, auto, velocity)
+        if n_changed:
+            self._load_routes(f, changed.nonzero()[0])
         if n_auto == auto.size:                          # every row follows its route (none flies a velocity)
             self._follow_routes(ctx, None)
             return
         if n_auto:
-            self._follow_routes(ctx, np.flatnonzero(auto))
-        velocity = mode == MODE_VELOCITY
-        n_velocity = count(velocity)
+            self._follow_routes(ctx, auto.nonzero()[0])
         if n_velocity == velocity.size:
             self._velocity_setpoints(ctx, None)
         elif n_velocity:
-            self._velocity_setpoints(ctx, np.flatnonzero(velocity))
+            self._velocity_setpoints(ctx, velocity.nonzero()[0])
 
     def _follow_routes(self, ctx: StepContext, k: np.ndarray | None) -> None:
         """AUTO rows (local indices ``k``, None: all rows): pure pursuit on the route."""
         f = ctx.fleet
+        g = self._geometry
+        if k is None and isinstance(self.sel, slice):        # all rows, contiguous: written in place
+            r = self.sel
+            _follow_into(f.pos_enu_m[r], f.route_segment[r], self._lead, self._zone_min, g.rows, g.width, g.last_seg,
+                         g.vec, g.length2, g.ok_t, g.seg_len, g.cum_start, g.len_u, g.ok_u, g.cum, g.total, g.last,
+                         self._arrival, f.pos_sp_enu_m[r], f.speed_limit_m_s[r], f.dist_to_go_m[r],
+                         f.cross_track_m[r], f.dist_to_final_m[r], f.arrived[r], f.vel_sp_enu_m_s[r])
+            return
         if k is None:
             r = self.sel
             target, seg, speeds, to_go, cross, to_final = pursue(f.pos_enu_m[r], f.route_segment[r], self._lead,
-                                                                 self._zone_min, self._geometry)
+                                                                 self._zone_min, g)
             arrival = self._arrival
         else:
             r = self.rows[k]
             target, seg, speeds, to_go, cross, to_final = pursue(f.pos_enu_m[r], f.route_segment[r], self._lead[k],
-                                                                 self._zone_min[k], self._geometry, k)
+                                                                 self._zone_min[k], g, k)
             arrival = self._arrival[k]
         f.route_segment[r] = seg
         f.pos_sp_enu_m[r] = target
@@ -136,3 +142,35 @@ class RouteFollowingSystem(FleetSystem):
         f.yaw_sp_rad[r] = np.nan
         f.dist_to_go_m[r] = 0.0
         f.speed_limit_m_s[r] = limits
+
+
+@jit
+def _route_rows(route_stamp, stamps, flight_mode, has_route, changed, auto, velocity):
+    """Per row: its route changed since it was loaded (``route_stamp`` != ``stamps``), it follows its route (AUTO
+    with a route), it flies a velocity (VELOCITY); returns how many of each."""
+    n_changed = n_auto = n_velocity = 0
+    for k in range(changed.shape[0]):
+        c = route_stamp[k] != stamps[k]
+        a = flight_mode[k] == MODE_AUTO and has_route[k]
+        v = flight_mode[k] == MODE_VELOCITY
+        changed[k], auto[k], velocity[k] = c, a, v
+        n_changed += c
+        n_auto += a
+        n_velocity += v
+    return n_changed, n_auto, n_velocity
+
+
+@jit
+def _follow_into(pos, segment, lead_m, final_zone_min_m, geo_rows, width, last_seg, vec, length2, ok_t, seg_len,
+                 cum_start, len_u, ok_u, cum, total, last, arrival_m, pos_sp, speed_limit, dist_to_go, cross_track,
+                 dist_to_final, arrived, vel_sp):
+    """:func:`~unetyemu_ecs.control.pursuit.pursue` of every row written straight into the fleet's arrays (views):
+    the segment, the position setpoint and speed limits, the distances, ``arrived`` and a zero velocity setpoint."""
+    for k in range(pos.shape[0]):
+        seg, to_go, cross, to_final = pursue_into(pos[k], segment[k], lead_m[k], final_zone_min_m[k], geo_rows[k],
+                                                  width, last_seg, vec, length2, ok_t, seg_len, cum_start, len_u,
+                                                  ok_u, cum, total, last, pos_sp[k], speed_limit[k])
+        segment[k] = seg
+        dist_to_go[k], cross_track[k], dist_to_final[k] = to_go, cross, to_final
+        arrived[k] = to_final < arrival_m[k]
+        vel_sp[k, 0] = vel_sp[k, 1] = vel_sp[k, 2] = 0.0

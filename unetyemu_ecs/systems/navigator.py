@@ -685,6 +685,36 @@ def _busy_rows_into(flight_mode, landed_state, nav_state, stream_or_sticks, busy
 
 
 @jit
+def _mark_carrying(payload_entity, carrying):
+    """``carrying`` (N,) bool: the rows carrying a package (``payload_entity`` >= 0); returns how many."""
+    n = 0
+    for k in range(carrying.shape[0]):
+        c = payload_entity[k] >= 0
+        carrying[k] = c
+        n += c
+    return n
+
+
+@jit
+def _mark_taking_off_or_mission(nav_state, marked):
+    """``marked`` (N,) bool: the rows whose nav state is TAKEOFF or MISSION; returns how many."""
+    n = 0
+    for k in range(marked.shape[0]):
+        c = nav_state[k] == NAV_TAKEOFF or nav_state[k] == NAV_MISSION
+        marked[k] = c
+        n += c
+    return n
+
+
+@jit
+def _count_armed(flight_mode):
+    n = 0
+    for k in range(flight_mode.shape[0]):
+        n += flight_mode[k] != MODE_DISARMED
+    return n
+
+
+@jit
 def _count_true(mask):
     n = 0
     for k in range(mask.shape[0]):
@@ -710,6 +740,8 @@ class LandDetectorSystem(FleetSystem):
         k_of_body = {body: k for k, body in enumerate(bodies)}
         self._k_of_body = k_of_body if len(k_of_body) == len(bodies) else None     # None: a body id twice
         self._ents = self.entities.tolist()
+        self._mask = np.zeros(self.rows.size, dtype=bool)
+        self._states = np.empty(self.rows.size, dtype=np.int8)
 
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
@@ -728,13 +760,14 @@ class LandDetectorSystem(FleetSystem):
         else:
             check = [k_of_body[body] for body in contact if body in k_of_body]
         nan = math.nan
-        carrying = np.flatnonzero(f.payload_entity[sel] >= 0)
-        if carrying.size:
-            check = sorted(set(check).union(carrying.tolist()))
+        carrying = self._mask
+        if _mark_carrying(f.payload_entity[sel], carrying):
+            check = sorted(set(check).union(carrying.nonzero()[0].tolist()))
         else:
             check.sort()
         modes, nav_states = f.flight_mode[sel], f.nav_state[sel]
-        states = np.full(m, LANDED_IN_AIR, dtype=np.int8)      # the new landed states, written back at once
+        states = self._states                                  # the new landed states, written back at once
+        states.fill(LANDED_IN_AIR)
         if check:
             self._check_rows(ctx, t, contact, check, states)
             free_mask = np.ones(m, dtype=bool)
@@ -746,7 +779,7 @@ class LandDetectorSystem(FleetSystem):
             free_mask = None
             free = navs
             armed = None
-        if armed is None and np.count_nonzero(modes) == m:     # all armed (flight_mode DISARMED is 0)
+        if armed is None and _count_armed(modes) == m:
             for nav in free:
                 nav.contact_since_s = nan
                 nav.ground_since_s = nan
@@ -759,15 +792,14 @@ class LandDetectorSystem(FleetSystem):
                 nav.took_off = True
         # the airborne state is IN_AIR but while taking off or landing: a TAKEOFF or MISSION nav state, or a
         # navigator mode (_airborne_state's first test)
-        moded = [nav for nav in navs if nav.mode]
-        special = (nav_states == NAV_TAKEOFF) | (nav_states == NAV_MISSION)
-        if moded or np.count_nonzero(special):
-            if moded:
-                special |= np.array([bool(nav.mode) for nav in navs], dtype=bool)
+        moded = [k for k, nav in enumerate(navs) if nav.mode]
+        special = self._mask
+        if _mark_taking_off_or_mission(nav_states, special) or moded:
+            special[moded] = True
             if free_mask is not None:
                 special &= free_mask
             ents, nav_state_list = self._ents, nav_states.tolist()
-            for k in np.flatnonzero(special).tolist():
+            for k in special.nonzero()[0].tolist():
                 states[k] = int(self._airborne_state(ents[k], nav_state_list[k], navs[k]))
         f.landed_state[sel] = states
 
