@@ -117,13 +117,36 @@ class StepContext:
     services: SimServices
 
 
-@dataclass
 class StepProfile:
-    """Wall time spent in each system (by class) over the profiled steps."""
+    """Wall time spent in each system (by class) over the profiled steps.
 
-    seconds: dict[type, float] = field(default_factory=dict)
-    calls: dict[type, int] = field(default_factory=dict)
-    steps: int = 0
+    The world charges each step's times to slots, one per system class, in running order (one clock reading
+    per system: a system's slot also holds the loop's own cost of calling it)."""
+
+    def __init__(self) -> None:
+        self.steps = 0
+        self._kinds: list[type] = []            # slot -> system class
+        self._spent_s: list[float] = []         # slot -> seconds
+        self._slot_of: dict[type, int] = {}
+
+    def slots(self, kinds: list[type]) -> list[int]:
+        """The slot of each system class in ``kinds`` (new ones get a slot at zero)."""
+        for kind in kinds:
+            if kind not in self._slot_of:
+                self._slot_of[kind] = len(self._kinds)
+                self._kinds.append(kind)
+                self._spent_s.append(0.0)
+        return [self._slot_of[kind] for kind in kinds]
+
+    @property
+    def spent_s(self) -> list[float]:
+        """Seconds by slot (what the world adds to)."""
+        return self._spent_s
+
+    @property
+    def seconds(self) -> dict[type, float]:
+        """Seconds spent in each system class."""
+        return dict(zip(self._kinds, self._spent_s))
 
     def rows(self) -> list[tuple[str, str, float, float]]:
         """``(phase, system, microseconds per step, share of the profiled time)`` for every system that ran,
@@ -159,6 +182,7 @@ class EcsWorld:
         self._closed = False
         self._systems: list[tuple[int, Any]] = []
         self.profile: StepProfile | None = None     # per-system timing (``unetyemu run --profile``)
+        self._profile_plan: tuple[StepProfile, list[tuple[int, Any]]] | None = None   # (profile, (slot, system)s)
         prev = esper.current_world
         esper.switch_world(self.name)  # creates it
         esper.switch_world(prev)
@@ -193,6 +217,7 @@ class EcsWorld:
             esper.add_processor(system, priority=prio)
         self._systems.append((prio, system))
         self._systems.sort(key=lambda ps: -ps[0])
+        self._profile_plan = None
 
     def remove_system(self, system_type: type) -> None:
         """Take the system of class ``system_type`` out of this world (``ValueError`` if it has none)."""
@@ -202,6 +227,7 @@ class EcsWorld:
         with self.active():
             esper.remove_processor(system_type)
         self._systems.remove(found[0])
+        self._profile_plan = None
 
     @property
     def systems(self) -> list[Any]:
@@ -211,18 +237,23 @@ class EcsWorld:
     def process(self, ctx: StepContext) -> None:
         """Run every system once, in phase order (the world must be active); timed per system while a
         :class:`StepProfile` is attached (``profile``)."""
-        if self.profile is None:
+        profile = self.profile
+        if profile is None:
             esper.process(ctx)
             return
         esper.clear_dead_entities()
-        clock, spent, calls = time.perf_counter, self.profile.seconds, self.profile.calls
-        for _, system in self._systems:
-            t0 = clock()
+        plan = self._profile_plan
+        if plan is None or plan[0] is not profile:
+            systems = [system for _, system in self._systems]
+            plan = self._profile_plan = (profile, list(zip(profile.slots([type(s) for s in systems]), systems)))
+        spent, clock = profile.spent_s, time.perf_counter
+        t0 = clock()
+        for slot, system in plan[1]:
             system.process(ctx)
-            key = type(system)
-            spent[key] = spent.get(key, 0.0) + (clock() - t0)
-            calls[key] = calls.get(key, 0) + 1
-        self.profile.steps += 1
+            t1 = clock()
+            spent[slot] += t1 - t0
+            t0 = t1
+        profile.steps += 1
 
     def close(self) -> None:
         """Delete the esper world; further use raises."""

@@ -24,6 +24,7 @@ from .flight_state import (FlightMode, LandedState, MissionState, NavState, Payl
 from .navigator import (arming_refusal, disarm, ensure_all_drones, ensure_nav, fly_manual, fly_offboard,
                         follow_fresh, hold, manual_fresh, offboard_fresh, start_follow, start_land, start_orbit,
                         start_rtl, start_takeoff)
+from .row_counts import count_at_most
 
 
 class FlightCommandSystem(esper.Processor):
@@ -50,7 +51,7 @@ class FlightCommandSystem(esper.Processor):
             ensure_all_drones()
             self._drones_seen = esper.get_components(GuidanceLimits)
         # no command pending and no streamed teleop/cmd_vel lapsing: serve_commands would do nothing
-        if ctx.services.pending or np.count_nonzero(f.cmd_hold_until_s <= ctx.sim_time_s + 1e-9):
+        if ctx.services.pending or count_at_most(f.cmd_hold_until_s, ctx.sim_time_s + 1e-9):
             serve_commands(ctx, GuidanceLimits, self._take, self._hold_after_lapse)
         for ent, (slot, script) in esper.get_components(FleetSlot, TeleopScript):
             k = self._script_next.get(ent, 0)

@@ -42,6 +42,7 @@ from .fleet_system import FleetSystem
 from .flight_state import (LANDED_IN_AIR, LANDED_ON_GROUND, LANDED_UNDEFINED, MISSION_RUNNING, MODE_DISARMED,
                            NAV_MANUAL, NAV_MISSION, NAV_OFFBOARD, NAV_POSCTL, NAV_TAKEOFF, ArmBlock, FlightMode,
                            LandedState, MissionState, NavState, Route, set_route)
+from .row_counts import count_not_equal, count_true
 
 _NOTHING: frozenset[int] = frozenset()
 # by nav_state (int8 in FLIGHT_ARRAYS, read as uint8): flown from a stream or sticks (OFFBOARD, POSCTL, MANUAL)
@@ -706,22 +707,6 @@ def _mark_taking_off_or_mission(nav_state, marked):
     return n
 
 
-@jit
-def _count_armed(flight_mode):
-    n = 0
-    for k in range(flight_mode.shape[0]):
-        n += flight_mode[k] != MODE_DISARMED
-    return n
-
-
-@jit
-def _count_true(mask):
-    n = 0
-    for k in range(mask.shape[0]):
-        n += mask[k]
-    return n
-
-
 # -- land detector ---------------------------------------------------------------------------
 class LandDetectorSystem(FleetSystem):
     """Landed state of every drone from contact and motion (PX4's multicopter land detector).
@@ -779,7 +764,7 @@ class LandDetectorSystem(FleetSystem):
             free_mask = None
             free = navs
             armed = None
-        if armed is None and _count_armed(modes) == m:
+        if armed is None and count_not_equal(modes, MODE_DISARMED) == m:
             for nav in free:
                 nav.contact_since_s = nan
                 nav.ground_since_s = nan
@@ -890,7 +875,7 @@ class NavigatorSystem(FleetSystem):
         navs, params_of = self.components
         m = len(navs)
         home_set = f.home_set[sel]
-        if _count_true(home_set) != m:
+        if count_true(home_set) != m:
             unset = self.rows[~home_set]
             f.home_enu_m[unset] = f.pos_enu_m[unset]
             f.home_set[unset] = True
@@ -912,7 +897,7 @@ class NavigatorSystem(FleetSystem):
             busy[moded] = True
             if any_fenced:
                 busy |= np.array(fenced, dtype=bool)
-            n_busy = _count_true(busy)
+            n_busy = count_true(busy)
         if n_busy == 0:
             for nav in navs:
                 nav.fence_ok = True

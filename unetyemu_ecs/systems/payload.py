@@ -21,6 +21,7 @@ from ..phases import Phase
 from ..world import StepContext
 from .fleet_system import FleetSystem
 from .flight_state import REQUEST_NONE, PayloadRequest, PayloadResult
+from .row_counts import count_not_equal
 
 
 @dataclass(frozen=True)
@@ -51,6 +52,8 @@ class PayloadSystem(FleetSystem):
 
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
+        if not count_not_equal(f.payload_request[self.sel], REQUEST_NONE):
+            return
         r = self.rows
         bays = self.components[0]
         pending = np.flatnonzero(f.payload_request[r] != REQUEST_NONE)
