@@ -61,10 +61,17 @@ def gain_arg(value: float | np.ndarray) -> float | np.ndarray:
     return np.ascontiguousarray(value, dtype=float) if np.ndim(value) else float(value)
 
 
+def float_rows(values: Any, *tail: int) -> np.ndarray:
+    """``values`` as a float array of shape (N, *tail): itself when it already is one (no call into NumPy)."""
+    if type(values) is np.ndarray and values.dtype == np.float64 and values.shape[1:] == tail and values.ndim:
+        return values
+    return np.asarray(values, dtype=float).reshape(-1, *tail)
+
+
 def rows_arg(*values: float | np.ndarray, n: int) -> list[np.ndarray]:
     """Per-row inputs (scalars or (n,) arrays) as the float (n,) arrays a kernel loops over."""
     return [v if type(v) is np.ndarray and v.dtype == np.float64 and v.shape == (n,)
             else np.broadcast_to(np.asarray(v, dtype=float).reshape(-1), (n,)) for v in values]
 
 
-__all__ = ["at", "gain_arg", "jit", "rows_arg", "ufunc"]
+__all__ = ["at", "float_rows", "gain_arg", "jit", "rows_arg", "ufunc"]

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .compiled import jit
+from .compiled import float_rows, jit
 from .layers import Airframe, DroneState, MotorCommand, ThrustTorqueCommand
 
 MOTOR_NAMES = ("FL", "FR", "BR", "BL")
@@ -74,8 +74,8 @@ def mix_x_quad(thrust_frac: np.ndarray, torque_cmd: np.ndarray) -> np.ndarray:
     A NaN in a drone's inputs zeroes that drone's command (motors off) rather than reaching the
     motors. Compiled, drone by drone (:func:`mix_x_quad_into`).
     """
-    thrust = np.asarray(thrust_frac, dtype=float).reshape(-1)
-    torque = np.asarray(torque_cmd, dtype=float).reshape(-1, 3)
+    thrust = float_rows(thrust_frac)
+    torque = float_rows(torque_cmd, 3)
     return _mix_x_quads(thrust, torque)
 
 

@@ -16,7 +16,7 @@ import numpy as np
 from ..config.schema import Ge, Gt, Le
 from ..frames import yaw_of_quat_xyzw
 from ..units import GRAVITY_M_S2, wrap_angle_of_rad
-from .compiled import at, gain_arg, jit, rows_arg
+from .compiled import at, float_rows, gain_arg, jit, rows_arg
 from .layers import Airframe, AttitudeSetpoint, DroneState, PositionSetpoint
 
 
@@ -204,7 +204,7 @@ def _pi_gains(g: GuidanceGains) -> tuple:
 
 def _vectors(values: np.ndarray, k: int) -> np.ndarray:
     """(N, k) float rows."""
-    return np.asarray(values, dtype=float).reshape(-1, k)
+    return float_rows(values, k)
 
 
 def body_velocity_to_enu_sp(vel_flu_m_s: np.ndarray, yaw_rad: np.ndarray, lim_climb_m_s: np.ndarray,

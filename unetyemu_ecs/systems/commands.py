@@ -34,7 +34,7 @@ class InboxSystem(esper.Processor):
 
     def process(self, ctx: StepContext) -> None:
         pending = ctx.services.inbox.drain()
-        if any(type(m) is Rejected for m in pending):
+        if pending and any(type(m) is Rejected for m in pending):
             for m in pending:
                 if type(m) is Rejected:
                     ctx.services.report(ctx.sim_time_s, m, CommandStatus.REJECTED_INVALID, "invalid", m.text)

@@ -42,7 +42,7 @@ from .fleet_system import FleetSystem
 from .flight_state import (LANDED_IN_AIR, LANDED_ON_GROUND, LANDED_UNDEFINED, MISSION_RUNNING, MODE_DISARMED,
                            NAV_MANUAL, NAV_MISSION, NAV_OFFBOARD, NAV_POSCTL, NAV_TAKEOFF, ArmBlock, FlightMode,
                            LandedState, MissionState, NavState, Route, set_route)
-from .row_counts import count_not_equal, count_true
+from .row_counts import count_true
 
 _NOTHING: frozenset[int] = frozenset()
 # by nav_state (int8 in FLIGHT_ARRAYS, read as uint8): flown from a stream or sticks (OFFBOARD, POSCTL, MANUAL)
@@ -655,29 +655,40 @@ def _arm_codes(f: Any, sel: slice | np.ndarray, lim: _RowLimits, outside: np.nda
 
 
 @jit
-def _arm_codes_into(landed_state, motors_enabled, payload_kg, low_battery, soc_frac, low_frac, max_payload, outside,
-                    codes):
-    """:func:`_arm_codes` row by row, each check's code written over the lower-priority ones (a row without a
-    battery has low_frac -inf and is never low; one without a bay max_payload inf and is never overweight)."""
-    for k in range(codes.shape[0]):
-        code = 0
-        if landed_state[k] != LANDED_ON_GROUND and landed_state[k] != LANDED_UNDEFINED:
-            code = _CODE_IN_AIR
-        if outside is not None and outside[k]:
-            code = _CODE_OUTSIDE
-        if not motors_enabled[k]:
-            code = _CODE_OVERWEIGHT if payload_kg[k] > max_payload[k] else _CODE_MOTORS
-        if (low_battery[k] or soc_frac[k] < low_frac[k]) and np.isfinite(low_frac[k]):
-            code = _CODE_LOW
-        codes[k] = code
+def _arm_code(landed_state, motors_enabled, payload_kg, low_battery, soc_frac, low_frac, max_payload_kg, outside):
+    """The ArmBlock code of one drone, each check's code written over the lower-priority ones (a drone without a
+    battery has low_frac -inf and is never low; one without a bay max_payload_kg inf and is never overweight)."""
+    code = 0
+    if landed_state != LANDED_ON_GROUND and landed_state != LANDED_UNDEFINED:
+        code = _CODE_IN_AIR
+    if outside:
+        code = _CODE_OUTSIDE
+    if not motors_enabled:
+        code = _CODE_OVERWEIGHT if payload_kg > max_payload_kg else _CODE_MOTORS
+    if (low_battery or soc_frac < low_frac) and np.isfinite(low_frac):
+        code = _CODE_LOW
+    return code
 
 
 @jit
-def _busy_rows_into(flight_mode, landed_state, nav_state, stream_or_sticks, busy):
-    """``busy`` (N,) bool: disarmed, on the ground, or flown from a stream or sticks (``stream_or_sticks`` by
-    nav_state); returns how many."""
+def _arm_codes_into(landed_state, motors_enabled, payload_kg, low_battery, soc_frac, low_frac, max_payload, outside,
+                    codes):
+    """:func:`_arm_codes` row by row (``outside`` None: nowhere)."""
+    for k in range(codes.shape[0]):
+        codes[k] = _arm_code(landed_state[k], motors_enabled[k], payload_kg[k], low_battery[k], soc_frac[k],
+                             low_frac[k], max_payload[k], outside is not None and outside[k])
+
+
+@jit
+def _navigator_screen(landed_state, motors_enabled, payload_kg, low_battery, soc_frac, low_frac, max_payload, outside,
+                      flight_mode, nav_state, stream_or_sticks, arm_block, busy):
+    """One pass of the navigator over its rows: ``arm_block`` (N,) the arming verdicts (:func:`_arm_codes`) and
+    ``busy`` (N,) bool the rows disarmed, on the ground, or flown from a stream or sticks (``stream_or_sticks`` by
+    nav_state); returns how many are busy."""
     n = 0
     for k in range(busy.shape[0]):
+        arm_block[k] = _arm_code(landed_state[k], motors_enabled[k], payload_kg[k], low_battery[k], soc_frac[k],
+                                 low_frac[k], max_payload[k], outside is not None and outside[k])
         b = (flight_mode[k] == MODE_DISARMED or landed_state[k] == LANDED_ON_GROUND
              or stream_or_sticks[np.uint8(nav_state[k])])
         busy[k] = b
@@ -686,25 +697,19 @@ def _busy_rows_into(flight_mode, landed_state, nav_state, stream_or_sticks, busy
 
 
 @jit
-def _mark_carrying(payload_entity, carrying):
-    """``carrying`` (N,) bool: the rows carrying a package (``payload_entity`` >= 0); returns how many."""
-    n = 0
+def _land_screen(payload_entity, flight_mode, nav_state, carrying, taking_off_or_mission):
+    """One pass of the land detector over its rows: ``carrying`` (N,) bool the rows carrying a package
+    (``payload_entity`` >= 0), ``taking_off_or_mission`` (N,) bool those whose nav state is TAKEOFF or MISSION;
+    returns how many carry, how many are armed and how many take off or fly a mission."""
+    n_carrying = n_armed = n_special = 0
     for k in range(carrying.shape[0]):
         c = payload_entity[k] >= 0
-        carrying[k] = c
-        n += c
-    return n
-
-
-@jit
-def _mark_taking_off_or_mission(nav_state, marked):
-    """``marked`` (N,) bool: the rows whose nav state is TAKEOFF or MISSION; returns how many."""
-    n = 0
-    for k in range(marked.shape[0]):
-        c = nav_state[k] == NAV_TAKEOFF or nav_state[k] == NAV_MISSION
-        marked[k] = c
-        n += c
-    return n
+        t = nav_state[k] == NAV_TAKEOFF or nav_state[k] == NAV_MISSION
+        carrying[k], taking_off_or_mission[k] = c, t
+        n_carrying += c
+        n_armed += flight_mode[k] != MODE_DISARMED
+        n_special += t
+    return n_carrying, n_armed, n_special
 
 
 # -- land detector ---------------------------------------------------------------------------
@@ -725,7 +730,8 @@ class LandDetectorSystem(FleetSystem):
         k_of_body = {body: k for k, body in enumerate(bodies)}
         self._k_of_body = k_of_body if len(k_of_body) == len(bodies) else None     # None: a body id twice
         self._ents = self.entities.tolist()
-        self._mask = np.zeros(self.rows.size, dtype=bool)
+        self._carrying = np.zeros(self.rows.size, dtype=bool)
+        self._special = np.zeros(self.rows.size, dtype=bool)
         self._states = np.empty(self.rows.size, dtype=np.int8)
 
     def update(self, ctx: StepContext) -> None:
@@ -745,12 +751,13 @@ class LandDetectorSystem(FleetSystem):
         else:
             check = [k_of_body[body] for body in contact if body in k_of_body]
         nan = math.nan
-        carrying = self._mask
-        if _mark_carrying(f.payload_entity[sel], carrying):
+        modes, nav_states = f.flight_mode[sel], f.nav_state[sel]
+        carrying, special = self._carrying, self._special
+        n_carrying, n_armed, n_special = _land_screen(f.payload_entity[sel], modes, nav_states, carrying, special)
+        if n_carrying:
             check = sorted(set(check).union(carrying.nonzero()[0].tolist()))
         else:
             check.sort()
-        modes, nav_states = f.flight_mode[sel], f.nav_state[sel]
         states = self._states                                  # the new landed states, written back at once
         states.fill(LANDED_IN_AIR)
         if check:
@@ -764,7 +771,7 @@ class LandDetectorSystem(FleetSystem):
             free_mask = None
             free = navs
             armed = None
-        if armed is None and count_not_equal(modes, MODE_DISARMED) == m:
+        if armed is None and n_armed == m:
             for nav in free:
                 nav.contact_since_s = nan
                 nav.ground_since_s = nan
@@ -778,8 +785,7 @@ class LandDetectorSystem(FleetSystem):
         # the airborne state is IN_AIR but while taking off or landing: a TAKEOFF or MISSION nav state, or a
         # navigator mode (_airborne_state's first test)
         moded = [k for k, nav in enumerate(navs) if nav.mode]
-        special = self._mask
-        if _mark_taking_off_or_mission(nav_states, special) or moded:
+        if n_special or moded:
             special[moded] = True
             if free_mask is not None:
                 special &= free_mask
@@ -868,6 +874,7 @@ class NavigatorSystem(FleetSystem):
         self._row_limits = _RowLimits(low_frac[rows], max_payload[rows])    # kept with the rows
         self._rows_list, self._ents = rows.tolist(), self.entities.tolist()
         self._busy = np.zeros(rows.size, dtype=bool)
+        self._arm_block = np.zeros(rows.size, dtype=np.int8)
 
     def update(self, ctx: StepContext) -> None:
         f = ctx.fleet
@@ -885,13 +892,17 @@ class NavigatorSystem(FleetSystem):
         if any_fenced:
             outside = np.array([bool(fence_breach(f, row, nav, params)) if on else False
                                 for on, row, nav, params in zip(fenced, self._rows_list, navs, params_of)], dtype=bool)
-        f.arm_block[sel] = _arm_codes(f, sel, self._row_limits, outside)
-        # The rows with something to do one by one: disarmed, on the ground (auto-disarm), in a navigator mode,
-        # flying a stream or sticks (OFFBOARD, POSCTL, MANUAL), or with a fence to enforce. Every other drone
-        # flies on with nothing to breach: only its fence_ok is set (what the loop below would do).
-        landed = f.landed_state[sel]
-        busy = self._busy
-        n_busy = _busy_rows_into(f.flight_mode[sel], landed, f.nav_state[sel], _STREAM_OR_STICKS, busy)
+        # The arming verdicts, and the rows with something to do one by one: disarmed, on the ground
+        # (auto-disarm), in a navigator mode, flying a stream or sticks (OFFBOARD, POSCTL, MANUAL), or with a fence
+        # to enforce. Every other drone flies on with nothing to breach: only its fence_ok is set (what the loop
+        # below would do).
+        landed, busy, lim = f.landed_state[sel], self._busy, self._row_limits
+        arm_block = f.arm_block[sel] if isinstance(sel, slice) else self._arm_block     # a view: written in place
+        n_busy = _navigator_screen(landed, f.motors_enabled[sel], f.payload_kg[sel], f.low_battery[sel],
+                                   f.soc_frac[sel], lim.low_frac, lim.max_payload, outside, f.flight_mode[sel],
+                                   f.nav_state[sel], _STREAM_OR_STICKS, arm_block, busy)
+        if arm_block is self._arm_block:
+            f.arm_block[sel] = arm_block
         moded = [k for k, nav in enumerate(navs) if nav.mode]
         if moded or any_fenced:
             busy[moded] = True

@@ -431,6 +431,8 @@ class Inbox:
         (:data:`STREAM_KINDS`) only the newest per vehicle and kind is kept, at the place of the
         first of them: the stream existed from then on, so a mode change that followed its first
         setpoint (MAVSDK's offboard start) still finds a setpoint before it."""
+        if self._q.empty():                         # the usual step: nothing came (no exception raised and caught)
+            return []
         taken: list[Command | Rejected] = []
         slot: dict[tuple[str, str], int] = {}       # (vehicle, kind) -> index of the stream's first message
         while True:
