@@ -15,6 +15,7 @@ Every gain argument may be a scalar or an (N,) array (a fleet with mixed gains).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Annotated
 
 import numpy as np
@@ -46,6 +47,14 @@ class StabilizerGains:
     gain_att_p: Annotated[float, Ge(0.0), Le(1_000.0)] = 1.146       # [1/rad] (the paper's 0.02 per degree)
     gain_rate_d: Annotated[float, Ge(0.0), Le(1_000.0)] = 0.2        # [s/rad]
     gain_yaw_rate_p: Annotated[float, Ge(0.0), Le(1_000.0)] = 1.0    # [s/rad]
+
+    @cached_property
+    def kernel_args(self) -> tuple:
+        """The gains as the compiled laws take them (:func:`~.compiled.gain_arg`), in the order of the fields:
+        worked out once per (frozen) object."""
+        return (gain_arg(self.gain_vz_p), gain_arg(self.gain_vz_i), gain_arg(self.gain_vz_d),
+                gain_arg(self.lim_vz_int_m_s), gain_arg(self.gain_att_p), gain_arg(self.gain_rate_d),
+                gain_arg(self.gain_yaw_rate_p))
 
 
 def vertical_speed_to_thrust_frac(vz_sp_m_s: np.ndarray, vz_m_s: np.ndarray, acc_z_m_s2: np.ndarray,
@@ -134,11 +143,11 @@ def _attitude_torque_cmds(roll_sp_rad, pitch_sp_rad, yaw_rate_sp_rad_s, roll_rad
 
 
 def _vz_gains(g: StabilizerGains) -> tuple:
-    return gain_arg(g.gain_vz_p), gain_arg(g.gain_vz_i), gain_arg(g.gain_vz_d), gain_arg(g.lim_vz_int_m_s)
+    return g.kernel_args[:4]
 
 
 def _attitude_gains(g: StabilizerGains) -> tuple:
-    return gain_arg(g.gain_att_p), gain_arg(g.gain_rate_d), gain_arg(g.gain_yaw_rate_p)
+    return g.kernel_args[4:]
 
 
 def manual_to_setpoints(stick: np.ndarray, lim_tilt_rad: np.ndarray, lim_climb_m_s: np.ndarray,
@@ -175,7 +184,7 @@ def angle_rate_pd_law(sp: AttitudeSetpoint, state: DroneState, airframe: Airfram
     thrust, torque, vz_int = _angle_rate_pd(
         *rows_arg(sp.vz_m_s, sp.roll_rad, sp.pitch_rad, sp.yaw_rate_rad_s, n=state.pos_enu_m.shape[0]),
         state.quat_enu_flu_xyzw, state.vel_enu_m_s, state.acc_enu_m_s2, state.rate_flu_rad_s, memory["vz_int_m_s"],
-        airframe.hover_thrust_frac, float(dt_s), *_vz_gains(params), *_attitude_gains(params))
+        airframe.hover_thrust_frac, float(dt_s), *params.kernel_args)
     return ThrustTorqueCommand(thrust, torque), {"vz_int_m_s": vz_int}
 
 

@@ -9,6 +9,7 @@ right). Every gain may be a scalar or an (N,) array.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Annotated
 
 import numpy as np
@@ -32,6 +33,13 @@ class GuidanceGains:
     lim_vel_int_m_s2: Annotated[float, Ge(0.0), Le(100.0)] = 2.0    # clamp on the integral's acceleration
     gain_yaw_p: Annotated[float, Gt(0.0), Le(1_000.0)] = 2.0          # [1/s] heading error -> yaw rate
     lim_decel_m_s2: Annotated[float, Gt(0.0), Le(100.0)] = 2.5      # braking that sizes the approach speed
+
+    @cached_property
+    def kernel_args(self) -> tuple:
+        """The gains as the compiled laws take them (:func:`~.compiled.gain_arg`), in the order gain_pos_p,
+        lim_decel_m_s2, gain_vel_p, gain_vel_i, lim_vel_int_m_s2, gain_yaw_p: worked out once per (frozen) object."""
+        return (gain_arg(self.gain_pos_p), gain_arg(self.lim_decel_m_s2), gain_arg(self.gain_vel_p),
+                gain_arg(self.gain_vel_i), gain_arg(self.lim_vel_int_m_s2), gain_arg(self.gain_yaw_p))
 
 
 def position_to_velocity_sp(pos_sp_enu_m: np.ndarray, pos_enu_m: np.ndarray, dist_to_go_m: np.ndarray,
@@ -199,7 +207,7 @@ def _yaw_rates_to_headings(yaw_sp_rad, yaw_rad, lim_yaw_rate_rad_s, gain_yaw_p):
 
 
 def _pi_gains(g: GuidanceGains) -> tuple:
-    return gain_arg(g.gain_vel_p), gain_arg(g.gain_vel_i), gain_arg(g.lim_vel_int_m_s2)
+    return g.kernel_args[2:5]
 
 
 def _vectors(values: np.ndarray, k: int) -> np.ndarray:
@@ -244,8 +252,7 @@ def cascade_pid_law(sp: PositionSetpoint, state: DroneState, airframe: Airframe,
     _cascade_pid(sp.pos_enu_m, sp.vel_enu_m_s, sp.speed_limit_m_s, sp.dist_to_go_m, sp.yaw_rad, sp.yaw_rate_rad_s,
                  state.pos_enu_m, state.vel_enu_m_s, state.quat_enu_flu_xyzw, airframe.max_tilt_rad,
                  airframe.lim_climb_m_s, airframe.lim_descent_m_s, airframe.lim_yaw_rate_rad_s,
-                 _vectors(memory["vel_int_m_s"], 2), float(dt_s), gain_arg(params.gain_pos_p),
-                 gain_arg(params.lim_decel_m_s2), *_pi_gains(params), gain_arg(params.gain_yaw_p), out, vel_int)
+                 _vectors(memory["vel_int_m_s"], 2), float(dt_s), *params.kernel_args, out, vel_int)
     return AttitudeSetpoint(out[:, 0], out[:, 1], out[:, 2], out[:, 3]), {"vel_int_m_s": vel_int}
 
 
