@@ -80,6 +80,26 @@ def test_sticks_map_to_setpoints_with_the_documented_signs_and_limits():
     assert_allclose(roll, [0.0, -0.35], atol=1e-12)
 
 
+def test_broken_sticks_read_as_centred_or_full_and_the_compiled_mapping_is_numpys_to_rounding():
+    def numpy_mapping(stick, lim_tilt, lim_climb, lim_descent, lim_yaw_rate):     # the array law it replaced
+        s = np.clip(np.nan_to_num(stick), -1.0, 1.0)
+        length = np.hypot(s[:, 1], s[:, 2])
+        k = np.tan(np.minimum(length, 1.0) * lim_tilt) / np.maximum(length, 1e-12)
+        pitch = np.arctan(k * s[:, 1])
+        return (np.where(s[:, 0] >= 0.0, s[:, 0] * lim_climb, s[:, 0] * lim_descent),
+                np.arctan(k * s[:, 2] * np.cos(pitch)), pitch, s[:, 3] * lim_yaw_rate)
+
+    rng = np.random.default_rng(7)
+    sticks = rng.uniform(-1.5, 1.5, (500, 4))
+    sticks[::7, 1], sticks[::11, 2], sticks[::13, 0], sticks[::17, 1:3] = np.nan, np.inf, -np.inf, 0.0
+    limits = (rng.uniform(0.1, 1.0, 500), rng.uniform(1.0, 5.0, 500), rng.uniform(1.0, 5.0, 500),
+              rng.uniform(0.5, 3.0, 500))
+    for got, expected in zip(manual_to_setpoints(sticks, *limits), numpy_mapping(sticks, *limits)):
+        assert_allclose(got, expected, rtol=1e-13, atol=0.0)
+    vz, roll, pitch, _ = manual_to_setpoints(np.array([[np.nan, np.inf, 0.0, 0.0]]), 0.5, 3.0, 2.0, 1.0)
+    assert (vz[0], roll[0]) == (0.0, 0.0) and pitch[0] == pytest.approx(0.5)   # NaN centred, +inf full
+
+
 def total_tilt_rad(roll: np.ndarray, pitch: np.ndarray) -> np.ndarray:
     """Angle between the body z axis and the vertical for roll-then-pitch Euler angles."""
     return np.arccos(np.cos(roll) * np.cos(pitch))

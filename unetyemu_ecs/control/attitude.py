@@ -23,7 +23,7 @@ import numpy as np
 from ..config.schema import Ge, Gt, Le
 from ..frames import euler_rpy_of_quat_xyzw
 from ..units import GRAVITY_M_S2
-from .compiled import at, gain_arg, jit, rows_arg
+from .compiled import at, float_rows, gain_arg, jit, rows_arg
 from .layers import Airframe, AttitudeSetpoint, DroneState, ThrustTorqueCommand
 
 MIN_COS_TILT = float(np.cos(np.deg2rad(60.0)))   # tilt compensation stops growing beyond 60 deg
@@ -163,17 +163,42 @@ def manual_to_setpoints(stick: np.ndarray, lim_tilt_rad: np.ndarray, lim_climb_m
       diagonally, not ~60 deg; one stick alone gives its Euler angle ``stick * lim_tilt`` exactly;
     - yaw: +1 = turn left (CCW) at ``lim_yaw_rate``.
 
-    Returns ``(vz_sp_m_s, roll_sp_rad, pitch_sp_rad, yaw_rate_sp_rad_s)``, each (N,).
+    Returns ``(vz_sp_m_s, roll_sp_rad, pitch_sp_rad, yaw_rate_sp_rad_s)``, each (N,). Compiled, drone by
+    drone (:func:`manual_setpoints_of`).
     """
-    s = np.clip(np.nan_to_num(np.asarray(stick, dtype=float).reshape(-1, 4)), -1.0, 1.0)
-    vz_sp = np.where(s[:, 0] >= 0.0, s[:, 0] * lim_climb_m_s, s[:, 0] * lim_descent_m_s)
-    length = np.hypot(s[:, 1], s[:, 2])
-    tilt = np.minimum(length, 1.0) * lim_tilt_rad                        # total tilt [rad]
+    s = float_rows(stick, 4)
+    n = s.shape[0]
+    out = np.empty((4, n))
+    _manual_setpoints(s, *rows_arg(lim_tilt_rad, lim_climb_m_s, lim_descent_m_s, lim_yaw_rate_rad_s, n=n), out)
+    return out[0], out[1], out[2], out[3]
+
+
+@jit
+def _stick(x):
+    """A stick axis: NaN 0, then clipped to [-1, 1] (numpy's nan_to_num then clip, infinities included)."""
+    return 0.0 if np.isnan(x) else min(1.0, max(-1.0, x))
+
+
+@jit
+def manual_setpoints_of(stick, lim_tilt_rad, lim_climb_m_s, lim_descent_m_s, lim_yaw_rate_rad_s):
+    """:func:`manual_to_setpoints` of one drone's sticks (4,): ``(vz_sp, roll_sp, pitch_sp, yaw_rate_sp)``."""
+    throttle, pitch_stick = _stick(stick[0]), _stick(stick[1])
+    roll_stick, yaw_stick = _stick(stick[2]), _stick(stick[3])
+    vz_sp = throttle * lim_climb_m_s if throttle >= 0.0 else throttle * lim_descent_m_s
+    length = np.hypot(pitch_stick, roll_stick)
+    tilt = min(length, 1.0) * lim_tilt_rad                              # total tilt [rad]
     # thrust axis along (tan(tilt) * direction, 1) in the heading frame (forward, right, up)
-    k = np.tan(tilt) / np.maximum(length, 1e-12)
-    pitch = np.arctan(k * s[:, 1])
-    roll = np.arctan(k * s[:, 2] * np.cos(pitch))
-    return vz_sp, roll, pitch, s[:, 3] * lim_yaw_rate_rad_s
+    k = np.tan(tilt) / max(length, 1e-12)
+    pitch = np.arctan(k * pitch_stick)
+    roll = np.arctan(k * roll_stick * np.cos(pitch))
+    return vz_sp, roll, pitch, yaw_stick * lim_yaw_rate_rad_s
+
+
+@jit
+def _manual_setpoints(stick, lim_tilt_rad, lim_climb_m_s, lim_descent_m_s, lim_yaw_rate_rad_s, out):
+    for k in range(stick.shape[0]):
+        out[0, k], out[1, k], out[2, k], out[3, k] = manual_setpoints_of(
+            stick[k], lim_tilt_rad[k], lim_climb_m_s[k], lim_descent_m_s[k], lim_yaw_rate_rad_s[k])
 
 
 def angle_rate_pd_law(sp: AttitudeSetpoint, state: DroneState, airframe: Airframe, params: StabilizerGains,

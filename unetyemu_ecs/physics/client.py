@@ -116,8 +116,7 @@ class PhysicsClient:
     def contact_map(self) -> dict[int, set[int]]:
         """Body id -> ids of the bodies it touched at the last step, for every body in contact (one call)."""
         out: dict[int, set[int]] = {}
-        for c in self._all_contact_points():
-            a, b = c[1], c[2]
+        for a, b in {(c[1], c[2]) for c in self._all_contact_points()}:     # pairs once (a manifold has up to 4 points)
             out.setdefault(a, set()).add(b)
             out.setdefault(b, set()).add(a)
         return out

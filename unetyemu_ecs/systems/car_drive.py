@@ -21,7 +21,7 @@ from ..phases import Phase
 from ..world import StepContext
 from .car_state import DriveMode
 from .controllers import ControllerSystem, finite_or_zero
-from .fleet_system import stack_params, take_params
+from .fleet_system import stack_params
 
 
 class DriveControllerSystem(ControllerSystem):
@@ -69,9 +69,7 @@ class DriveControllerSystem(ControllerSystem):
                              np.where(route, f.car_steer_sp_rad[rk], np.nan),
                              np.where(route, 0.0, f.cmd_vel[rk, 1]))
             state = CarState(v[k], f.rate_flu_rad_s[rk, 2], f.car_steer_rad[rk], f.car_throttle[rk], f.car_brake[rk])
-            every = k.size == r.size
-            chassis = self.chassis if every else take_params(self.chassis, k)
-            params = self.params if every else take_params(self.params, k)
+            params, chassis = self.take_rows(k, self.params, self.chassis)
             out: CarCommand = self.call_law(ctx, sp, state, chassis, params, rk)
             throttle[k] = np.clip(finite_or_zero(out.throttle), -1.0, 1.0)
             brake[k] = np.clip(finite_or_zero(out.brake), 0.0, 1.0)

@@ -127,6 +127,17 @@ class ControllerSystem(FleetSystem):
             self._mode_seen = getattr(f, self.mode_array)[self.rows].copy()
             self._entered = np.zeros(self.rows.size, dtype=bool)
         self._views: dict[type, Any] = {}
+        self._taken: tuple[bytes, tuple[Any, ...], tuple[Any, ...]] | None = None   # the last take_rows: k, in, out
+
+    def take_rows(self, k: np.ndarray, *stacked: Any) -> tuple[Any, ...]:
+        """The stacked parameter objects ``stacked`` at the local indices ``k`` (all of them: as they are); kept
+        while the same rows are asked for (they change with a mode, not every step)."""
+        if k.size == self.rows.size:
+            return stacked
+        key, kept = k.tobytes(), self._taken
+        if kept is None or kept[0] != key or any(a is not b for a, b in zip(kept[1], stacked)):
+            kept = self._taken = (key, stacked, tuple(take_params(s, k) for s in stacked))
+        return kept[2]
 
     def fleet_view(self, ctx: StepContext, cls: type, names: tuple[str, ...], rows: slice | np.ndarray) -> Any:
         """``cls(*arrays)`` of the read-only fleet arrays ``names`` at ``rows``. For all the rows as a slice it
@@ -208,9 +219,7 @@ class DroneControllerSystem(ControllerSystem):
 
     def subset(self, k: np.ndarray) -> tuple[Any, Any]:
         """Parameters and airframe of the local indices ``k`` (all of them: the stacked ones as they are)."""
-        if k.size == self.rows.size:
-            return self.params, self.airframe
-        return take_params(self.params, k), take_params(self.airframe, k)
+        return self.take_rows(k, self.params, self.airframe)
 
 
 class PositionControllerSystem(DroneControllerSystem):
