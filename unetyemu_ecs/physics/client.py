@@ -9,10 +9,15 @@ from __future__ import annotations
 import os
 import sys
 from collections.abc import Sequence
+from operator import itemgetter
 from typing import Any
 
 import numpy as np
 import pybullet as p
+
+# fields of a PyBullet contact point: (flag, body A, body B, link A, link B, position on A, position on B, ...)
+_BODIES_OF_POINT = itemgetter(1, 2)
+_BODIES_AND_POINT = itemgetter(1, 2, 6)
 
 
 class PhysicsError(RuntimeError):
@@ -116,14 +121,14 @@ class PhysicsClient:
     def contact_map(self) -> dict[int, set[int]]:
         """Body id -> ids of the bodies it touched at the last step, for every body in contact (one call)."""
         out: dict[int, set[int]] = {}
-        for a, b in {(c[1], c[2]) for c in self._all_contact_points()}:     # pairs once (a manifold has up to 4 points)
+        for a, b in set(map(_BODIES_OF_POINT, self._all_contact_points())):     # pairs once (up to 4 points each)
             out.setdefault(a, set()).add(b)
             out.setdefault(b, set()).add(a)
         return out
 
     def contacts(self) -> list[tuple[int, int, tuple[float, float, float]]]:
         """Every contact point after the last step as ``(body_a, body_b, point_on_b_enu_m)`` (one call)."""
-        return [(c[1], c[2], c[6]) for c in self._all_contact_points()]
+        return list(map(_BODIES_AND_POINT, self._all_contact_points()))
 
     def contact_count(self, body_a: int, body_b: int | None = None) -> int:
         """Number of contact points of ``body_a`` (with ``body_b`` if given) after the last step."""

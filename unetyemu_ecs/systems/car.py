@@ -24,7 +24,7 @@ from ..physics.car_body import CarCommander, read_suspension
 from ..transport.bus import Arm, CmdVel, Drive, DriveRoute, SetTarget
 from ..units import GRAVITY_M_S2
 from ..world import StepContext
-from .car_state import CarPath, DriveMode, set_path
+from .car_state import DRIVE_PARKED, DRIVE_ROUTE, CarPath, DriveMode, set_path
 from .commands import serve_commands, warn_if_obstructed
 from .fleet_system import FleetSystem, stack_params
 
@@ -182,7 +182,7 @@ class CarGuidanceSystem(CarFleetSystem):
 
     def update(self, ctx: StepContext) -> None:
         f, c = ctx.fleet, self
-        sel = np.flatnonzero(f.drive_mode[c.rows] == DriveMode.ROUTE)
+        sel = np.flatnonzero(f.drive_mode[c.rows] == DRIVE_ROUTE)
         if sel.size == 0:
             return
         r = c.rows[sel]
@@ -307,7 +307,7 @@ class CarActuationSystem(CarFleetSystem):
         dyn = c.dyn
         cid = ctx.physics.id
         commanders = self._car_commanders
-        parked = f.drive_mode[r] == DriveMode.PARKED
+        parked = f.drive_mode[r] == DRIVE_PARKED
         for i in np.flatnonzero(self._was_parked != parked):
             commanders[i].allow_sleep(bool(parked[i]))     # only a parked car may sleep
         self._was_parked = parked

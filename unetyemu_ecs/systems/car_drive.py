@@ -19,7 +19,7 @@ from ..control.car import bicycle_limit_rad, steer_limit_rad
 from ..control.layers import CarChassis, CarCommand, CarSetpoint, CarState
 from ..phases import Phase
 from ..world import StepContext
-from .car_state import DriveMode
+from .car_state import DRIVE_MANUAL, DRIVE_PARKED, DRIVE_ROUTE, DRIVE_VELOCITY
 from .controllers import ControllerSystem, finite_or_zero
 from .fleet_system import stack_params
 
@@ -55,7 +55,7 @@ class DriveControllerSystem(ControllerSystem):
         v = np.einsum("ni,ni->n", f.vel_enu_m_s[r], fwd)
         f.car_speed_m_s[r] = v
         mode = f.drive_mode[r]
-        controlled = (mode == DriveMode.VELOCITY) | (mode == DriveMode.ROUTE)
+        controlled = (mode == DRIVE_VELOCITY) | (mode == DRIVE_ROUTE)
         self.restart_on_entry(ctx, mode, controlled)
 
         throttle = np.zeros(r.size)
@@ -64,7 +64,7 @@ class DriveControllerSystem(ControllerSystem):
         k = np.flatnonzero(controlled)
         if k.size:
             rk = r[k]
-            route = f.drive_mode[rk] == DriveMode.ROUTE
+            route = f.drive_mode[rk] == DRIVE_ROUTE
             sp = CarSetpoint(np.where(route, f.car_speed_sp_m_s[rk], f.cmd_vel[rk, 0]),
                              np.where(route, f.car_steer_sp_rad[rk], np.nan),
                              np.where(route, 0.0, f.cmd_vel[rk, 1]))
@@ -77,12 +77,12 @@ class DriveControllerSystem(ControllerSystem):
 
         wheel_limit = steer_limit_rad(v, np.deg2rad(dyn.max_steer_deg), dyn.steer_scale_at_50_m_s)
         limit = bicycle_limit_rad(wheel_limit, dyn.wheelbase_m, dyn.track_m)     # inner wheel at the limit
-        manual = mode == DriveMode.MANUAL
+        manual = mode == DRIVE_MANUAL
         cmd = f.drive_cmd[r]
         throttle = np.where(manual, cmd[:, 0], throttle)
         brake = np.where(manual, cmd[:, 1], brake)
         steer_sp = np.where(manual, cmd[:, 2] * limit, steer_sp)
-        parked = mode == DriveMode.PARKED
+        parked = mode == DRIVE_PARKED
         throttle = np.where(parked, 0.0, throttle)
         brake = np.where(parked, 1.0, brake)
 

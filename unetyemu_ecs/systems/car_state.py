@@ -24,6 +24,11 @@ class DriveMode(IntEnum):
     MANUAL = 3     # teleop: throttle, brake, steering
 
 
+# the modes as plain ints, for comparisons with the fleet's arrays (an IntEnum costs NumPy a slow conversion)
+DRIVE_PARKED, DRIVE_ROUTE = int(DriveMode.PARKED), int(DriveMode.ROUTE)
+DRIVE_VELOCITY, DRIVE_MANUAL = int(DriveMode.VELOCITY), int(DriveMode.MANUAL)
+
+
 @dataclass(frozen=True)
 class CarPath:
     """A route in the form the follower needs.

@@ -22,8 +22,8 @@ from ..navigation.params import FlightParams
 from ..navigation.state import NavRuntime
 from ..phases import Phase
 from ..world import StepContext
-from .flight_state import (FlightMode, LandedState, MissionState, NavState, PayloadRequest, PayloadResult, Route,
-                           set_route)
+from .flight_state import (MODE_DISARMED, NAV_MISSION, FlightMode, LandedState, MissionState, NavState,
+                           PayloadRequest, PayloadResult, Route, set_route)
 from .navigator import start_rtl
 
 # MissionRuntime.state -> the number transports read (mission_state)
@@ -63,8 +63,8 @@ class MissionSystem(esper.Processor):
             f.mission_state[row] = MISSION_STATES[rt.state]
             if rt.state != "running":
                 continue
-            if f.nav_state[row] != NavState.MISSION and f.flight_mode[row] != FlightMode.DISARMED:
-                f.nav_state[row] = NavState.MISSION
+            if f.nav_state[row] != NAV_MISSION and f.flight_mode[row] != MODE_DISARMED:     # plain ints: no enum
+                f.nav_state[row] = NAV_MISSION
             if f.low_battery[row] and rt.spec.steps[rt.step_index].type not in ("land", "recharge"):
                 self._fail(ctx, ident.name, row, rt, "low_battery")
                 self._begin_emergency_landing(ctx, ent, row)
@@ -72,7 +72,7 @@ class MissionSystem(esper.Processor):
             self._advance(ctx, ent, ident.name, row, rt)
             f.mission_step[row] = rt.step_index if rt.state == "running" else -1
             f.mission_state[row] = MISSION_STATES[rt.state]
-            if rt.state == "completed" and f.nav_state[row] == NavState.MISSION:
+            if rt.state == "completed" and f.nav_state[row] == NAV_MISSION:
                 f.nav_state[row] = NavState.HOLD
 
     # -- state machine -----------------------------------------------------------------------
