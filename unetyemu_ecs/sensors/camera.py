@@ -28,6 +28,7 @@ import numpy as np
 from ..components.body import Appearance, FleetSlot
 from ..config.limits import MAX_XY_M, SensorRate
 from ..config.schema import Gt, Le, Lt
+from ..control.compiled import jit
 from ..phases import Phase
 from ..scene.colors import class_rgb
 from ..world import StepContext
@@ -187,20 +188,33 @@ class RgbCameraSystem(_CameraSystem):
     def measure(self, ctx: StepContext, due: list[MountedSensor], time_s: float) -> None:
         for s, (hits, sl, dirs_w) in zip(due, self.cast_frames(ctx, due, time_s)):
             spec: RgbCamera = s.spec
-            cls = hits.cls[sl]
-            rgb = _CLASS_RGB[np.clip(cls, 0, 255)]
-            body = cls == MOVING_BODY
-            rgb[body] = self._colours[hits.box[sl][body]]
-            normal = hits.normal[sl]
-            normal = np.where((np.einsum("ij,ij->i", normal, dirs_w) > 0)[:, None], -normal, normal)   # face the camera
-            shade = AMBIENT + (1.0 - AMBIENT) * np.clip(normal @ SUN_DIR_ENU, 0.0, 1.0)
-            rgb = rgb * shade[:, None]
-            sky = (cls == NO_HIT) | ~(hits.t[sl] <= spec.max_range_m)
-            rgb[sky] = SKY_RGB
-            pixels = np.clip(rgb * 255.0 + 0.5, 0, 255).astype(np.uint8).reshape(spec.height, spec.width, 3)
+            pixels = np.empty((spec.height, spec.width, 3), dtype=np.uint8)
+            shade_pixels(hits.cls[sl], hits.box[sl], hits.normal[sl], dirs_w, hits.t[sl], spec.max_range_m,
+                         _CLASS_RGB, self._colours, pixels.reshape(-1, 3))
             self.publish(ctx, s, time_s,
                          build=partial(image, time_s, s.frame_id, spec.width, spec.height, "rgb8", pixels))
             self.publish_info(ctx, s, time_s)
+
+
+@jit
+def shade_pixels(cls, box, normal, dirs_w, t, max_range_m, class_rgb_table, body_rgb, pixels):
+    """RGB8 ``pixels`` (M, 3) of M rays' hits: the colour of the class hit (of the body, for a moving body),
+    lit by the sun (Lambert on the normal turned to face the camera, plus ambient); sky where the ray hit
+    nothing within ``max_range_m``. ``cls`` (M,), ``box`` (M,), ``normal`` and ``dirs_w`` (M, 3), ``t`` (M,)."""
+    for k in range(cls.shape[0]):
+        c = cls[k]
+        if c == NO_HIT or not t[k] <= max_range_m:
+            for i in range(3):
+                pixels[k, i] = np.uint8(min(255.0, max(0.0, SKY_RGB[i] * 255.0 + 0.5)))
+            continue
+        n0, n1, n2 = np.float64(normal[k, 0]), np.float64(normal[k, 1]), np.float64(normal[k, 2])
+        if normal[k, 0] * dirs_w[k, 0] + normal[k, 1] * dirs_w[k, 1] + normal[k, 2] * dirs_w[k, 2] > 0:   # face the camera
+            n0, n1, n2 = -n0, -n1, -n2
+        lambert = n0 * SUN_DIR_ENU[0] + n1 * SUN_DIR_ENU[1] + n2 * SUN_DIR_ENU[2]
+        shade = AMBIENT + (1.0 - AMBIENT) * min(1.0, max(0.0, lambert))
+        for i in range(3):
+            colour = body_rgb[box[k], i] if c == MOVING_BODY else class_rgb_table[min(255, max(0, c)), i]
+            pixels[k, i] = np.uint8(min(255.0, max(0.0, colour * shade * 255.0 + 0.5)))
 
 
 class DepthCameraSystem(_CameraSystem):
