@@ -158,17 +158,22 @@ def test_set_attitude_target_over_mavlink_flies_offboard_and_rate_only_setpoints
             sim.flush_transports(5.0)
             sim.run(duration=0.05)
         api.send(mavlink2.MAVLink_set_mode_message(1, 1 | 128, MAIN_OFFBOARD << 16))
-        v0, t0 = None, 0.0
+        v0, t0, hb = None, 0.0, None
         for k in range(40):                                   # 2 s at 20 Hz
             api.send(tilted)
             sim.flush_transports(5.0)
             sim.run(duration=0.05)
             if k == 10:
                 v0, t0 = sim.velocity_enu_m_s("d1").copy(), sim.sim_time_s
+            api.poll()                                        # heartbeats (1 Hz) while the stream is alive
+            hb = hb or api.take("HEARTBEAT", lambda m: (m.custom_mode >> 16) & 0xFF == MAIN_OFFBOARD)
         a = (sim.velocity_enu_m_s("d1") - v0) / (sim.sim_time_s - t0)
-        # THEN the drone is in OFFBOARD, faces east and accelerates east at g tan 10 deg at constant height
+        # THEN the drone is in OFFBOARD (and says so in its heartbeat), faces east and accelerates east at
+        # g tan 10 deg at constant height
         assert sim.nav_state("d1") == "OFFBOARD"
-        hb = wait_for(sim, api, "HEARTBEAT", lambda m: (m.custom_mode >> 16) & 0xFF == MAIN_OFFBOARD, steps=240)
+        sim.flush_transports(5.0)
+        api.poll()
+        hb = hb or api.take("HEARTBEAT", lambda m: (m.custom_mode >> 16) & 0xFF == MAIN_OFFBOARD)
         assert hb is not None
         assert heading(sim) == pytest.approx(0.0, abs=0.05)
         assert a[0] == pytest.approx(GRAVITY_M_S2 * math.tan(math.radians(10.0)), rel=0.15)
