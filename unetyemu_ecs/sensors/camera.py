@@ -208,8 +208,8 @@ def shade_pixels(cls, box, normal, dirs_w, t, max_range_m, class_rgb_table, body
                 pixels[k, i] = np.uint8(min(255.0, max(0.0, SKY_RGB[i] * 255.0 + 0.5)))
             continue
         n0, n1, n2 = np.float64(normal[k, 0]), np.float64(normal[k, 1]), np.float64(normal[k, 2])
-        if normal[k, 0] * dirs_w[k, 0] + normal[k, 1] * dirs_w[k, 1] + normal[k, 2] * dirs_w[k, 2] > 0:   # face the camera
-            n0, n1, n2 = -n0, -n1, -n2
+        if normal[k, 0] * dirs_w[k, 0] + normal[k, 1] * dirs_w[k, 1] + normal[k, 2] * dirs_w[k, 2] > 0:
+            n0, n1, n2 = -n0, -n1, -n2                     # turned to face the camera
         lambert = n0 * SUN_DIR_ENU[0] + n1 * SUN_DIR_ENU[1] + n2 * SUN_DIR_ENU[2]
         shade = AMBIENT + (1.0 - AMBIENT) * min(1.0, max(0.0, lambert))
         for i in range(3):
