@@ -14,7 +14,7 @@ import numpy as np
 from ..components.flight import GuidanceLimits
 from ..control.compiled import jit
 from ..control.position import body_velocity_to_enu_sp
-from ..control.pursuit import RouteGeometry, pursue, pursue_into
+from ..control.pursuit import RouteGeometry, pursue_into
 from ..frames import yaw_rad_from_quat_xyzw
 from ..phases import Phase
 from ..world import StepContext
@@ -98,34 +98,18 @@ class RouteFollowingSystem(FleetSystem):
             self._velocity_setpoints(ctx, velocity.nonzero()[0])
 
     def _follow_routes(self, ctx: StepContext, k: np.ndarray | None) -> None:
-        """AUTO rows (local indices ``k``, None: all rows): pure pursuit on the route."""
+        """AUTO rows (local indices ``k``, None: all rows): pure pursuit on the route, written into the fleet."""
         f = ctx.fleet
         g = self._geometry
-        if k is None and isinstance(self.sel, slice):        # all rows, contiguous: written in place
-            r = self.sel
-            _follow_into(f.pos_enu_m[r], f.route_segment[r], self._lead, self._zone_min, g.rows, g.width, g.last_seg,
-                         g.vec, g.length2, g.ok_t, g.seg_len, g.cum_start, g.len_u, g.ok_u, g.cum, g.total, g.last,
-                         self._arrival, f.pos_sp_enu_m[r], f.speed_limit_m_s[r], f.dist_to_go_m[r],
-                         f.cross_track_m[r], f.dist_to_final_m[r], f.arrived[r], f.vel_sp_enu_m_s[r])
-            return
         if k is None:
-            r = self.sel
-            target, seg, speeds, to_go, cross, to_final = pursue(f.pos_enu_m[r], f.route_segment[r], self._lead,
-                                                                 self._zone_min, g)
-            arrival = self._arrival
+            rows, geo_rows, lead, zone_min, arrival = self.rows, g.rows, self._lead, self._zone_min, self._arrival
         else:
-            r = self.rows[k]
-            target, seg, speeds, to_go, cross, to_final = pursue(f.pos_enu_m[r], f.route_segment[r], self._lead[k],
-                                                                 self._zone_min[k], g, k)
-            arrival = self._arrival[k]
-        f.route_segment[r] = seg
-        f.pos_sp_enu_m[r] = target
-        f.dist_to_final_m[r] = to_final
-        f.cross_track_m[r] = cross
-        f.arrived[r] = to_final < arrival
-        f.dist_to_go_m[r] = to_go
-        f.speed_limit_m_s[r] = speeds
-        f.vel_sp_enu_m_s[r] = 0.0
+            rows, geo_rows, lead, zone_min, arrival = (self.rows[k], k, self._lead[k], self._zone_min[k],
+                                                       self._arrival[k])
+        _follow_into(rows, f.pos_enu_m, f.route_segment, lead, zone_min, geo_rows, g.width, g.last_seg, g.vec,
+                     g.length2, g.ok_t, g.seg_len, g.cum_start, g.len_u, g.ok_u, g.cum, g.total, g.last, arrival,
+                     f.pos_sp_enu_m, f.speed_limit_m_s, f.dist_to_go_m, f.cross_track_m, f.dist_to_final_m,
+                     f.arrived, f.vel_sp_enu_m_s)
 
     def _velocity_setpoints(self, ctx: StepContext, k: np.ndarray | None) -> None:
         """VELOCITY rows (local indices ``k``, None: all rows): the commanded body velocity in ENU,
@@ -161,16 +145,18 @@ def _route_rows(route_stamp, stamps, flight_mode, has_route, changed, auto, velo
 
 
 @jit
-def _follow_into(pos, segment, lead_m, final_zone_min_m, geo_rows, width, last_seg, vec, length2, ok_t, seg_len,
-                 cum_start, len_u, ok_u, cum, total, last, arrival_m, pos_sp, speed_limit, dist_to_go, cross_track,
-                 dist_to_final, arrived, vel_sp):
-    """:func:`~unetyemu_ecs.control.pursuit.pursue` of every row written straight into the fleet's arrays (views):
-    the segment, the position setpoint and speed limits, the distances, ``arrived`` and a zero velocity setpoint."""
-    for k in range(pos.shape[0]):
-        seg, to_go, cross, to_final = pursue_into(pos[k], segment[k], lead_m[k], final_zone_min_m[k], geo_rows[k],
+def _follow_into(rows, pos, segment, lead_m, final_zone_min_m, geo_rows, width, last_seg, vec, length2, ok_t,
+                 seg_len, cum_start, len_u, ok_u, cum, total, last, arrival_m, pos_sp, speed_limit, dist_to_go,
+                 cross_track, dist_to_final, arrived, vel_sp):
+    """:func:`~unetyemu_ecs.control.pursuit.pursue` of the fleet ``rows`` (M,) on the geometry's ``geo_rows`` (M,),
+    written straight into the fleet's arrays at those rows: the segment, the position setpoint and speed limits,
+    the distances, ``arrived`` and a zero velocity setpoint (``lead_m``, ``final_zone_min_m``, ``arrival_m``: (M,))."""
+    for j in range(rows.shape[0]):
+        r = rows[j]
+        seg, to_go, cross, to_final = pursue_into(pos[r], segment[r], lead_m[j], final_zone_min_m[j], geo_rows[j],
                                                   width, last_seg, vec, length2, ok_t, seg_len, cum_start, len_u,
-                                                  ok_u, cum, total, last, pos_sp[k], speed_limit[k])
-        segment[k] = seg
-        dist_to_go[k], cross_track[k], dist_to_final[k] = to_go, cross, to_final
-        arrived[k] = to_final < arrival_m[k]
-        vel_sp[k, 0] = vel_sp[k, 1] = vel_sp[k, 2] = 0.0
+                                                  ok_u, cum, total, last, pos_sp[r], speed_limit[r])
+        segment[r] = seg
+        dist_to_go[r], cross_track[r], dist_to_final[r] = to_go, cross, to_final
+        arrived[r] = to_final < arrival_m[j]
+        vel_sp[r, 0] = vel_sp[r, 1] = vel_sp[r, 2] = 0.0
