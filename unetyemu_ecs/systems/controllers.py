@@ -65,13 +65,13 @@ def finite_or_zero(values: Any) -> np.ndarray:
 
 
 @jit
-def _unit_fractions_into(values, out):
-    """``out`` (N, K) = ``values`` (N, K) clamped to [0, 1], NaN and infinities 0 (``finite_or_zero`` then the
+def _unit_fractions_into(values, rows, out):
+    """``out[rows]`` (N, K) = ``values`` (N, K) clamped to [0, 1], NaN and infinities 0 (``finite_or_zero`` then the
     clamp, ordered as numpy's ``minimum(maximum(x, 0), 1)``)."""
     for k in range(values.shape[0]):
         for j in range(values.shape[1]):
             v = values[k, j]
-            out[k, j] = min(1.0, max(0.0, v)) if np.isfinite(v) else 0.0
+            out[rows[k], j] = min(1.0, max(0.0, v)) if np.isfinite(v) else 0.0
 
 
 @jit
@@ -318,9 +318,9 @@ class MixerSystem(DroneControllerSystem):
         cmd = self.fleet_view(ctx, ThrustTorqueCommand, ("thrust_frac_sp", "torque_cmd"), r)
         out = self.call_law(ctx, cmd, self.state(ctx, r), self.airframe, self.params, r)
         motor_frac = np.asarray(out.motor_frac, dtype=float)
-        if motor_frac.shape == (self.rows.size, 4) and isinstance(r, slice):
-            _unit_fractions_into(motor_frac, f.motor_frac_cmd[r])     # NaN and infinities 0, clamped to [0, 1]
-        else:
+        if motor_frac.shape == (self.rows.size, 4):
+            _unit_fractions_into(motor_frac, self.rows, f.motor_frac_cmd)   # NaN and infinities 0, clamped to [0, 1]
+        else:                                                               # what numpy broadcasts, or its error
             f.motor_frac_cmd[r] = np.minimum(np.maximum(finite_or_zero(motor_frac), 0.0), 1.0)
         if self._memory_names:
             disarmed = f.flight_mode[r] == MODE_DISARMED
