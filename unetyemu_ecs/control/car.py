@@ -9,12 +9,14 @@ PyBullet: every function takes and returns arrays of N cars.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Annotated
 
 import numpy as np
 
 from ..config.schema import Ge, Gt, Le
-from ..units import GRAVITY_M_S2, wrap_angle_rad
+from ..units import GRAVITY_M_S2, wrap_angle_of_rad
+from .compiled import at, float_rows, gain_arg, jit, rows_arg, ufunc
 from .layers import CarChassis, CarCommand, CarSetpoint, CarState
 
 SPEED_FOR_STEER_SCALE_M_S = 50.0   # the steering limit falls linearly to its scale at this speed
@@ -47,33 +49,84 @@ class SpeedSteerGains:
     max_accel_m_s2: Annotated[float, Gt(0.0), Le(50.0)] = 3.0       # comfort limits of the speed controller
     max_decel_m_s2: Annotated[float, Gt(0.0), Le(50.0)] = 4.0
 
+    @cached_property
+    def kernel_args(self) -> tuple:
+        """The gains as the compiled laws take them (:func:`~.compiled.gain_arg`), in the order of the fields:
+        worked out once per (frozen) object."""
+        return (gain_arg(self.gain_speed_p), gain_arg(self.gain_speed_i), gain_arg(self.lim_speed_int_m_s2),
+                gain_arg(self.gain_yaw_rate_p), gain_arg(self.max_accel_m_s2), gain_arg(self.max_decel_m_s2))
+
+
+def _steer_limit(speed_m_s: float, max_steer_rad: float, scale_at_50_m_s: float) -> float:
+    frac = min(abs(speed_m_s) / SPEED_FOR_STEER_SCALE_M_S, 1.0)
+    return max_steer_rad * (1.0 - (1.0 - scale_at_50_m_s) * frac)
+
+
+steer_limit_scalar_rad = jit(_steer_limit)
+_steer_limit_ufunc = ufunc("f8(f8, f8, f8)")(_steer_limit)
+
 
 def steer_limit_rad(speed_m_s: np.ndarray, max_steer_rad: np.ndarray, scale_at_50_m_s: np.ndarray) -> np.ndarray:
     """Steering limit (N,) [rad] at a speed: ``max_steer`` at rest, falling linearly to
-    ``scale_at_50 * max_steer`` at 50 m/s and held there (the reference implementation's law)."""
-    frac = np.clip(np.abs(speed_m_s) / SPEED_FOR_STEER_SCALE_M_S, 0.0, 1.0)
-    return max_steer_rad * (1.0 - (1.0 - scale_at_50_m_s) * frac)
+    ``scale_at_50 * max_steer`` at 50 m/s and held there (the reference implementation's law).
+    Compiled per car (:data:`steer_limit_scalar_rad` is the kernels' form)."""
+    return _steer_limit_ufunc(speed_m_s, max_steer_rad, scale_at_50_m_s)
+
+
+def _ackermann_pair(delta_rad: float, wheelbase_m: float, track_m: float) -> tuple[float, float]:
+    if not abs(delta_rad) > 1e-9:                        # straight on (and NaN): both wheels straight
+        return 0.0, 0.0
+    sign = 1.0 if delta_rad > 0.0 else -1.0
+    radius = wheelbase_m / np.tan(abs(delta_rad))
+    return (sign * np.arctan(wheelbase_m / (radius - sign * track_m / 2.0)),
+            sign * np.arctan(wheelbase_m / (radius + sign * track_m / 2.0)))
+
+
+ackermann_pair_rad = jit(_ackermann_pair)
+
+
+@jit
+def _ackermann_rows(delta_rad, wheelbase_m, track_m, out):
+    for k in range(out.shape[0]):
+        out[k, 0], out[k, 1] = ackermann_pair_rad(delta_rad[k], wheelbase_m[k], track_m[k])
 
 
 def ackermann_angles(delta_rad: np.ndarray, wheelbase_m: np.ndarray, track_m: np.ndarray) -> np.ndarray:
     """Left and right front-wheel angles (N, 2) [rad] for a bicycle-model angle ``delta``.
 
     Both wheels turn about the same centre on the rear-axle line, at radius ``R = L / tan(delta)``
-    from the car's centre line: the inner wheel turns more (``atan(L / (R - t/2))``).
+    from the car's centre line: the inner wheel turns more (``atan(L / (R - t/2))``). Compiled per
+    car (:data:`ackermann_pair_rad` is the kernels' form: one car's pair).
     """
-    delta = np.asarray(delta_rad, dtype=float)
-    turning = np.abs(delta) > 1e-9
-    radius = wheelbase_m / np.tan(np.where(turning, np.abs(delta), 1.0))
-    sign = np.sign(delta)
-    left = sign * np.arctan(wheelbase_m / (radius - sign * track_m / 2.0))
-    right = sign * np.arctan(wheelbase_m / (radius + sign * track_m / 2.0))
-    return np.where(turning[:, None], np.stack([left, right], axis=1), 0.0)
+    n = max(np.size(delta_rad), np.size(wheelbase_m), np.size(track_m))
+    out = np.empty((n, 2))
+    _ackermann_rows(*rows_arg(delta_rad, wheelbase_m, track_m, n=n), out)
+    return out
+
+
+def _bicycle_limit(wheel_limit_rad: float, wheelbase_m: float, track_m: float) -> float:
+    return np.arctan(wheelbase_m / (wheelbase_m / np.tan(wheel_limit_rad) + track_m / 2.0))
+
+
+bicycle_limit_scalar_rad = jit(_bicycle_limit)
+_bicycle_limit_ufunc = ufunc("f8(f8, f8, f8)")(_bicycle_limit)
 
 
 def bicycle_limit_rad(wheel_limit_rad: np.ndarray, wheelbase_m: np.ndarray, track_m: np.ndarray) -> np.ndarray:
     """The largest bicycle-model angle (N,) [rad] whose Ackermann *inner* wheel stays within
     ``wheel_limit`` (the inverse of :func:`ackermann_angles` for the inner wheel)."""
-    return np.arctan(wheelbase_m / (wheelbase_m / np.tan(wheel_limit_rad) + track_m / 2.0))
+    return _bicycle_limit_ufunc(wheel_limit_rad, wheelbase_m, track_m)
+
+
+def _drive_torque(throttle: float, speed_fwd_m_s: float, max_torque_n_m: float, top_speed_m_s: float) -> float:
+    throttle = min(max(throttle, -1.0), 1.0)
+    along = speed_fwd_m_s if throttle >= 0.0 else -speed_fwd_m_s          # speed in the driven direction
+    fade = min(max(1.0 - along / top_speed_m_s, 0.0), 1.0)
+    return throttle * max_torque_n_m * fade
+
+
+drive_torque_scalar_n_m = jit(_drive_torque)
+_drive_torque_ufunc = ufunc("f8(f8, f8, f8, f8)")(_drive_torque)
 
 
 def drive_torque_n_m(throttle: np.ndarray, speed_fwd_m_s: np.ndarray, max_torque_n_m: np.ndarray,
@@ -82,12 +135,48 @@ def drive_torque_n_m(throttle: np.ndarray, speed_fwd_m_s: np.ndarray, max_torque
 
     The torque falls linearly with speed in the driven direction and vanishes at the top speed, so
     no input can drive the car faster than ``top_speed``; against the motion (``throttle`` opposing
-    ``speed``) the full torque is available.
+    ``speed``) the full torque is available. Compiled per car (:data:`drive_torque_scalar_n_m`).
     """
-    throttle = np.clip(throttle, -1.0, 1.0)
-    along = np.where(throttle >= 0.0, speed_fwd_m_s, -speed_fwd_m_s)          # speed in the driven direction
-    fade = np.clip(1.0 - along / top_speed_m_s, 0.0, 1.0)
-    return throttle * max_torque_n_m * fade
+    return _drive_torque_ufunc(throttle, speed_fwd_m_s, max_torque_n_m, top_speed_m_s)
+
+
+@jit
+def throttle_brake_of(speed_sp_m_s, speed_m_s, speed_int, dt_s, feedforward_n, mass_kg, wheel_radius_m,
+                      max_drive_n_m, max_brake_n_m, top_speed_m_s, gain_speed_p, gain_speed_i, lim_speed_int_m_s2,
+                      max_accel_m_s2, max_decel_m_s2):
+    """:func:`speed_to_throttle_brake` of one car: ``(throttle, brake, new integral)``."""
+    err = speed_sp_m_s - speed_m_s
+    lim = lim_speed_int_m_s2 / max(gain_speed_i, 1e-12)
+    trial = min(max(speed_int + err * dt_s, -lim), lim)
+    acc = gain_speed_p * err + gain_speed_i * trial
+    new_int = speed_int if (acc > max_accel_m_s2 or acc < -max_decel_m_s2) else trial
+    acc = min(max(acc, -max_decel_m_s2), max_accel_m_s2)
+    moving = abs(speed_m_s) > 0.3
+    if moving:
+        direction = 1.0 if speed_m_s > 0.0 else -1.0
+    else:
+        direction = -1.0 if speed_sp_m_s < 0.0 else 1.0
+    force = mass_kg * acc + direction * feedforward_n                    # along the world-forward axis
+    # drive: the torque that gives `force`, as a fraction of what the motor has at this speed
+    available = max_drive_n_m * min(max(1.0 - direction * speed_m_s / top_speed_m_s, 0.05), 1.0)
+    throttle = min(max(force * wheel_radius_m / available, -1.0), 1.0)
+    if moving and force * direction < 0.0:                               # against the motion: brakes
+        # all four wheels share the force
+        return 0.0, min(abs(force) * wheel_radius_m / (4.0 * max_brake_n_m), 1.0), new_int
+    if not moving and abs(speed_sp_m_s) < 0.05:                          # hold a stopped car
+        return 0.0, 1.0, 0.0
+    return throttle, 0.0, new_int
+
+
+@jit
+def _throttles_brakes(speed_sp_m_s, speed_m_s, speed_int, dt_s, feedforward_n, mass_kg, wheel_radius_m,
+                      max_drive_n_m, max_brake_n_m, top_speed_m_s, gain_speed_p, gain_speed_i, lim_speed_int_m_s2,
+                      max_accel_m_s2, max_decel_m_s2, out):
+    for k in range(out.shape[0]):
+        out[k, 0], out[k, 1], out[k, 2] = throttle_brake_of(
+            speed_sp_m_s[k], speed_m_s[k], speed_int[k], dt_s, feedforward_n[k], mass_kg[k], wheel_radius_m[k],
+            max_drive_n_m[k], max_brake_n_m[k], top_speed_m_s[k], at(gain_speed_p, k), at(gain_speed_i, k),
+            at(lim_speed_int_m_s2, k), at(max_accel_m_s2, k), at(max_decel_m_s2, k))
 
 
 def speed_to_throttle_brake(speed_sp_m_s: np.ndarray, speed_m_s: np.ndarray, speed_int: np.ndarray, dt_s: float,
@@ -99,40 +188,55 @@ def speed_to_throttle_brake(speed_sp_m_s: np.ndarray, speed_m_s: np.ndarray, spe
     ``a = kp e + ki int(e)`` limited to ``[-max_decel, max_accel]`` [m/s^2]; the force
     ``m a + feedforward`` (rolling resistance) is produced by the motor when it pushes in the
     direction of travel (or the car is nearly stopped), by the brakes when it opposes the motion.
-    Anti-windup: the integral is frozen while the output is limited.
+    Anti-windup: the integral is frozen while the output is limited. Compiled per car
+    (:func:`throttle_brake_of`).
     """
-    err = speed_sp_m_s - speed_m_s
-    lim = gains.lim_speed_int_m_s2 / np.maximum(gains.gain_speed_i, 1e-12)
-    trial = np.clip(speed_int + err * dt_s, -lim, lim)
-    acc = gains.gain_speed_p * err + gains.gain_speed_i * trial
-    limited = (acc > gains.max_accel_m_s2) | (acc < -gains.max_decel_m_s2)
-    new_int = np.where(limited, speed_int, trial)
-    acc = np.clip(acc, -gains.max_decel_m_s2, gains.max_accel_m_s2)
-    moving = np.abs(speed_m_s) > 0.3
-    direction = np.where(moving, np.sign(speed_m_s), np.where(speed_sp_m_s < 0.0, -1.0, 1.0))
-    force = mass_kg * acc + direction * feedforward_n                        # along the world-forward axis
-    wants_brake = moving & (force * direction < 0.0)
-    # drive: the torque that gives `force`, as a fraction of what the motor has at this speed
-    along = direction * speed_m_s
-    available = max_drive_n_m * np.clip(1.0 - along / top_speed_m_s, 0.05, 1.0)
-    throttle = np.clip(force * wheel_radius_m / available, -1.0, 1.0)
-    # brake: all four wheels share the force
-    brake = np.clip(np.abs(force) * wheel_radius_m / (4.0 * max_brake_n_m), 0.0, 1.0)
-    stop_hold = (~moving) & (np.abs(speed_sp_m_s) < 0.05)                    # hold a stopped car
-    throttle = np.where(wants_brake | stop_hold, 0.0, throttle)
-    brake = np.where(wants_brake, brake, np.where(stop_hold, 1.0, 0.0))
-    new_int = np.where(stop_hold, 0.0, new_int)
-    return throttle, brake, new_int
+    values = (speed_sp_m_s, speed_m_s, speed_int, feedforward_n, mass_kg, wheel_radius_m, max_drive_n_m,
+              max_brake_n_m, top_speed_m_s)
+    n = max(np.size(v) for v in values)
+    sp, v, integral, ff, m, r, drive, brake, top = rows_arg(*values, n=n)
+    out = np.empty((n, 3))
+    _throttles_brakes(sp, v, integral, float(dt_s), ff, m, r, drive, brake, top, *gains.kernel_args[:2],
+                      gains.kernel_args[2], gains.kernel_args[4], gains.kernel_args[5], out)
+    return out[:, 0], out[:, 1], out[:, 2]
+
+
+def _steer_for_yaw_rate(yaw_rate_sp_rad_s: float, yaw_rate_rad_s: float, speed_m_s: float, wheelbase_m: float,
+                        gain_yaw_rate_p: float) -> float:
+    v = speed_m_s
+    if abs(speed_m_s) < 0.5:
+        v = -0.5 if speed_m_s < 0.0 else 0.5
+    return np.arctan(wheelbase_m * yaw_rate_sp_rad_s / v) + gain_yaw_rate_p * (yaw_rate_sp_rad_s - yaw_rate_rad_s)
+
+
+steer_for_yaw_rate_rad = jit(_steer_for_yaw_rate)
+_steer_for_yaw_rate_ufunc = ufunc("f8(f8, f8, f8, f8, f8)")(_steer_for_yaw_rate)
 
 
 def yaw_rate_to_steer(yaw_rate_sp_rad_s: np.ndarray, yaw_rate_rad_s: np.ndarray, speed_m_s: np.ndarray,
                       wheelbase_m: np.ndarray, gains: SpeedSteerGains) -> np.ndarray:
     """Bicycle-model steering (N,) [rad] for a yaw rate: ``atan(L r / v)`` plus P on the rate error.
 
-    Below 0.5 m/s the kinematic term uses 0.5 m/s (a car cannot turn on the spot).
+    Below 0.5 m/s the kinematic term uses 0.5 m/s (a car cannot turn on the spot). Compiled per car
+    (:data:`steer_for_yaw_rate_rad`).
     """
-    v = np.where(np.abs(speed_m_s) < 0.5, np.where(speed_m_s < 0.0, -0.5, 0.5), speed_m_s)
-    return np.arctan(wheelbase_m * yaw_rate_sp_rad_s / v) + gains.gain_yaw_rate_p * (yaw_rate_sp_rad_s - yaw_rate_rad_s)
+    return _steer_for_yaw_rate_ufunc(yaw_rate_sp_rad_s, yaw_rate_rad_s, speed_m_s, wheelbase_m, gains.gain_yaw_rate_p)
+
+
+@jit
+def pursuit_steer_of(target_x_m, target_y_m, rear_axle_x_m, rear_axle_y_m, yaw_rad, wheelbase_m):
+    """:func:`pure_pursuit_steer` of one car [rad]."""
+    dx, dy = target_x_m - rear_axle_x_m, target_y_m - rear_axle_y_m
+    dist = max(np.sqrt(dx * dx + dy * dy), 1e-6)
+    alpha = wrap_angle_of_rad(np.arctan2(dy, dx) - yaw_rad)
+    return np.arctan(wheelbase_m * 2.0 * np.sin(alpha) / dist)
+
+
+@jit
+def _pursuit_steers(target_enu_m, rear_axle_enu_m, yaw_rad, wheelbase_m, out):
+    for k in range(out.shape[0]):
+        out[k] = pursuit_steer_of(target_enu_m[k, 0], target_enu_m[k, 1], rear_axle_enu_m[k, 0], rear_axle_enu_m[k, 1],
+                                  yaw_rad[k], wheelbase_m[k])
 
 
 def pure_pursuit_steer(target_enu_m: np.ndarray, rear_axle_enu_m: np.ndarray, yaw_rad: np.ndarray,
@@ -141,12 +245,13 @@ def pure_pursuit_steer(target_enu_m: np.ndarray, rear_axle_enu_m: np.ndarray, ya
 
     The arc leaves the rear axle tangent to the heading and passes through the target: curvature
     ``2 sin(alpha) / l`` with ``alpha`` the bearing of the target off the heading and ``l`` its
-    distance; ``delta = atan(L * curvature)``.
+    distance; ``delta = atan(L * curvature)``. Compiled per car (:func:`pursuit_steer_of`).
     """
-    d = target_enu_m[:, :2] - rear_axle_enu_m[:, :2]
-    dist = np.maximum(np.linalg.norm(d, axis=1), 1e-6)
-    alpha = wrap_angle_rad(np.arctan2(d[:, 1], d[:, 0]) - yaw_rad)
-    return np.arctan(wheelbase_m * 2.0 * np.sin(alpha) / dist)
+    target, rear = float_rows(target_enu_m, 3), float_rows(rear_axle_enu_m, 3)
+    n = target.shape[0]
+    out = np.empty(n)
+    _pursuit_steers(target, rear, *rows_arg(yaw_rad, wheelbase_m, n=n), out)
+    return out
 
 
 def corner_speeds_m_s(points_enu_m: np.ndarray, cruise_m_s: float, max_lat_accel_m_s2: float,
@@ -175,19 +280,35 @@ def corner_speeds_m_s(points_enu_m: np.ndarray, cruise_m_s: float, max_lat_accel
     return speeds
 
 
+@jit
+def route_speed_of(s_along_m, cum_m, point_speeds_m_s, max_decel_m_s2):
+    """:func:`route_speed_sp` of one car: ``cum_m`` and ``point_speeds_m_s`` (W,) its route's points."""
+    best = np.inf
+    for j in range(cum_m.shape[0]):
+        if cum_m[j] >= s_along_m - 1e-9:
+            best = min(best, np.sqrt(point_speeds_m_s[j] ** 2 + 2.0 * max_decel_m_s2 * max(cum_m[j] - s_along_m, 0.0)))
+    return best
+
+
+@jit
+def _route_speeds(s_along_m, cum_m, point_speeds_m_s, max_decel_m_s2, out):
+    for k in range(out.shape[0]):
+        out[k] = route_speed_of(s_along_m[k], cum_m[k], point_speeds_m_s[k], at(max_decel_m_s2, k))
+
+
 def route_speed_sp(s_along_m: np.ndarray, cum_m: np.ndarray, point_speeds_m_s: np.ndarray,
                    max_decel_m_s2: float | np.ndarray) -> np.ndarray:
     """Speed setpoint (N,) [m/s]: the lowest ``sqrt(v_i^2 + 2 a d_i)`` over route points ahead.
 
     s_along_m : (N,) [m] distance along the route; cum_m : (N, W) [m] distance of each point along
     it; point_speeds_m_s : (N, W) [m/s] limits at the points. Points behind contribute nothing.
+    Compiled per car (:func:`route_speed_of`).
     """
-    ahead = np.maximum(cum_m - s_along_m[:, None], 0.0)
-    decel = np.asarray(max_decel_m_s2, dtype=float)
-    decel = decel[:, None] if decel.ndim else decel
-    reach = np.sqrt(point_speeds_m_s ** 2 + 2.0 * decel * ahead)
-    reach = np.where(cum_m >= s_along_m[:, None] - 1e-9, reach, np.inf)
-    return np.min(reach, axis=1)
+    cum = np.asarray(cum_m, dtype=float)
+    out = np.empty(cum.shape[0])
+    _route_speeds(*rows_arg(s_along_m, n=cum.shape[0]), cum, np.asarray(point_speeds_m_s, dtype=float),
+                  gain_arg(max_decel_m_s2), out)
+    return out
 
 
 __all__ = [
@@ -214,26 +335,41 @@ def speed_pi_steer_law(sp: CarSetpoint, state: CarState, chassis: CarChassis, pa
     forward); steering: the route's angle where given, else :func:`yaw_rate_to_steer`. Bumpless:
     when the layer engages (memory ``engaged`` is 0, as after a reset) the integral starts at the
     value that reproduces the acceleration of the throttle and brake applied now, so taking over
-    from manual driving or the parking brake causes no jerk.
+    from manual driving or the parking brake causes no jerk. One compiled loop over the cars.
     """
-    v = state.speed_m_s
-    integral = memory["speed_int"].copy()
-    fresh = memory["engaged"] < 0.5
-    if fresh.any():
-        direction = np.where(np.abs(v) > 0.3, np.sign(v), 1.0)
-        drive_n = drive_torque_n_m(state.throttle, v, chassis.max_drive_torque_n_m,
-                                   chassis.top_speed_m_s) / chassis.wheel_radius_m
-        brake_n = state.brake * 4.0 * chassis.max_brake_torque_n_m / chassis.wheel_radius_m
-        acc_now = (drive_n - direction * brake_n * (np.abs(v) > 0.3)) / chassis.mass_kg
-        ki = np.maximum(params.gain_speed_i, 1e-9)
-        start = (acc_now - params.gain_speed_p * (sp.speed_m_s - v)) / ki
-        lim = params.lim_speed_int_m_s2 / ki
-        start = np.where(params.gain_speed_i > 0, np.clip(start, -lim, lim), 0.0)
-        integral = np.where(fresh, start, integral)
-    rolling_n = chassis.rolling_resistance_coeff * chassis.mass_kg * GRAVITY_M_S2
-    throttle, brake, integral = speed_to_throttle_brake(
-        sp.speed_m_s, v, integral, dt_s, rolling_n, chassis.mass_kg, chassis.wheel_radius_m,
-        chassis.max_drive_torque_n_m, chassis.max_brake_torque_n_m, chassis.top_speed_m_s, params)
-    by_rate = yaw_rate_to_steer(sp.yaw_rate_rad_s, state.yaw_rate_rad_s, v, chassis.wheelbase_m, params)
-    steer = np.where(np.isfinite(sp.steer_rad), sp.steer_rad, by_rate)
-    return CarCommand(throttle, brake, steer), {"speed_int": integral, "engaged": np.ones_like(integral)}
+    n = np.size(state.speed_m_s)
+    out = np.empty((n, 4))                                   # throttle, brake, steer, new integral
+    c = chassis
+    _speed_pi_steer(*rows_arg(sp.speed_m_s, sp.steer_rad, sp.yaw_rate_rad_s, state.speed_m_s, state.yaw_rate_rad_s,
+                              state.throttle, state.brake, c.mass_kg, c.wheelbase_m, c.wheel_radius_m,
+                              c.max_drive_torque_n_m, c.max_brake_torque_n_m, c.top_speed_m_s,
+                              c.rolling_resistance_coeff, memory["speed_int"], memory["engaged"], n=n),
+                    float(dt_s), *params.kernel_args, out)
+    return CarCommand(out[:, 0], out[:, 1], out[:, 2]), {"speed_int": out[:, 3], "engaged": np.ones(n)}
+
+
+@jit
+def _speed_pi_steer(speed_sp_m_s, steer_sp_rad, yaw_rate_sp_rad_s, speed_m_s, yaw_rate_rad_s, throttle_now,
+                    brake_now, mass_kg, wheelbase_m, wheel_radius_m, max_drive_n_m, max_brake_n_m, top_speed_m_s,
+                    rolling_coeff, speed_int, engaged, dt_s, gain_speed_p, gain_speed_i, lim_speed_int_m_s2,
+                    gain_yaw_rate_p, max_accel_m_s2, max_decel_m_s2, out):
+    for k in range(out.shape[0]):
+        v = speed_m_s[k]
+        kp, ki, lim_int = at(gain_speed_p, k), at(gain_speed_i, k), at(lim_speed_int_m_s2, k)
+        integral = speed_int[k]
+        if engaged[k] < 0.5:                                 # bumpless start: the acceleration applied now
+            moving = abs(v) > 0.3
+            direction = (1.0 if v > 0.0 else -1.0) if moving else 1.0
+            drive_n = drive_torque_scalar_n_m(throttle_now[k], v, max_drive_n_m[k], top_speed_m_s[k]) / wheel_radius_m[k]
+            brake_n = brake_now[k] * 4.0 * max_brake_n_m[k] / wheel_radius_m[k]
+            acc_now = (drive_n - direction * brake_n * moving) / mass_kg[k]
+            ki_pos = max(ki, 1e-9)
+            lim = lim_int / ki_pos
+            integral = min(max((acc_now - kp * (speed_sp_m_s[k] - v)) / ki_pos, -lim), lim) if ki > 0 else 0.0
+        rolling_n = rolling_coeff[k] * mass_kg[k] * GRAVITY_M_S2
+        out[k, 0], out[k, 1], out[k, 3] = throttle_brake_of(
+            speed_sp_m_s[k], v, integral, dt_s, rolling_n, mass_kg[k], wheel_radius_m[k], max_drive_n_m[k],
+            max_brake_n_m[k], top_speed_m_s[k], kp, ki, lim_int, at(max_accel_m_s2, k), at(max_decel_m_s2, k))
+        steer = steer_sp_rad[k]
+        out[k, 2] = steer if np.isfinite(steer) else steer_for_yaw_rate_rad(
+            yaw_rate_sp_rad_s[k], yaw_rate_rad_s[k], v, wheelbase_m[k], at(gain_yaw_rate_p, k))

@@ -150,7 +150,7 @@ def pursue(pos_enu_m: np.ndarray, segment: np.ndarray, lead_m: np.ndarray, final
 
 
 @jit
-def _project(pos, vec, length2, ok):
+def project_on_segment(pos, vec, length2, ok):
     """Projection of ``pos`` (3,) on the segment ``a -> a + d`` of ``vec`` (a, d, ...) whose ``length2`` (d.d) and
     ``ok`` (length2 > 1e-12) are kept: t in [0, 1] (1 on a segment too short to divide by) and the distance from
     ``pos`` to the foot of the perpendicular; sums in numpy's einsum order, clamps as numpy's (signed zeros)."""
@@ -173,14 +173,14 @@ def pursue_into(pos, segment, lead_m, final_zone_min_m, g, width, last_seg, vec,
         if not seg < last_seg[g]:
             break
         cur, nxt = base + seg, base + min(seg + 1, width - 2)
-        t_cur, dist_cur = _project(pos, vec[cur], length2[cur], ok_t[cur])
-        t_next, dist_next = _project(pos, vec[nxt], length2[nxt], ok_t[nxt])
+        t_cur, dist_cur = project_on_segment(pos, vec[cur], length2[cur], ok_t[cur])
+        t_next, dist_next = project_on_segment(pos, vec[nxt], length2[nxt], ok_t[nxt])
         if not (t_cur >= 1.0 or (dist_next <= dist_cur and t_next > 0.0)):
             break
         seg += 1
     flat = base + seg
     v = vec[flat]
-    t, cross = _project(pos, v, length2[flat], ok_t[flat])
+    t, cross = project_on_segment(pos, v, length2[flat], ok_t[flat])
     s_proj = cum_start[flat] + t * seg_len[flat]
     remaining = max(0.0, total[g] - s_proj)
     lead = lead_m * min(1.0, remaining / final_zone_min_m)               # remaining >= 0

@@ -138,10 +138,9 @@ def create_car_body(client_id: int, geometry: CarGeometry, pos_enu_m: Sequence[f
     return body, joints
 
 
-def read_suspension(client_id: int, body: int, joints: CarJoints) -> tuple[np.ndarray, np.ndarray]:
-    """Deflection (4,) [m] (positive = wheel pushed up) and its rate (4,) [m/s] of each wheel."""
-    states = p.getJointStates(body, list(joints.suspension), physicsClientId=client_id)
-    return np.array([s[0] for s in states]), np.array([s[1] for s in states])
+def read_suspension(client_id: int, body: int, joints: CarJoints) -> list[tuple[float, float]]:
+    """Deflection [m] (positive = wheel pushed up) and its rate [m/s] of each wheel (fl, fr, rl, rr)."""
+    return [state[:2] for state in p.getJointStates(body, joints.suspension, physicsClientId=client_id)]
 
 
 def read_wheel_rates(client_id: int, body: int, joints: CarJoints) -> np.ndarray:
@@ -162,7 +161,7 @@ class CarCommander:
         self.cid, self.body, self.joints = client_id, body, joints
         self._torque_joints = list(joints.suspension) + list(joints.wheels)
         self._last_steer: tuple[float, float] | None = None
-        self._last_brake: tuple[float, ...] | None = None
+        self._last_brake: float | None = None
         self.allow_sleep(True)
 
     def allow_sleep(self, allowed: bool) -> None:
@@ -174,29 +173,29 @@ class CarCommander:
                              physicsClientId=self.cid)
             p.changeDynamics(self.body, -1, activationState=p.ACTIVATION_STATE_WAKE_UP, physicsClientId=self.cid)
 
-    def apply(self, suspension_force_n: np.ndarray, steer_rad: np.ndarray, wheel_torque_n_m: np.ndarray,
-              brake_torque_n_m: np.ndarray) -> None:
+    def apply(self, suspension_force_n: list[float], steer_left_rad: float, steer_right_rad: float,
+              rear_wheel_torque_n_m: float, brake_torque_n_m: float) -> None:
         """Command the car for the next step.
 
-        suspension_force_n : (4,) [N] force on each wheel carrier along chassis +z (fl, fr, rl, rr)
-        steer_rad : (2,) [rad] front-left, front-right wheel angles (positive = left)
-        wheel_torque_n_m : (4,) [N m] drive torque on each wheel (positive = forward)
-        brake_torque_n_m : (4,) [N m] maximum braking torque of each wheel (>= 0)
+        suspension_force_n : 4 forces [N] on the wheel carriers along chassis +z (fl, fr, rl, rr)
+        steer_left_rad, steer_right_rad : front-left, front-right wheel angles [rad] (positive = left)
+        rear_wheel_torque_n_m : drive torque [N m] on each rear wheel (positive = forward)
+        brake_torque_n_m : maximum braking torque [N m] of every wheel (>= 0)
         """
-        steer = (round(float(steer_rad[0]), 6), round(float(steer_rad[1]), 6))
+        steer = (round(steer_left_rad, 6), round(steer_right_rad, 6))
         if steer != self._last_steer:
-            p.setJointMotorControlArray(self.body, list(self.joints.steering), p.POSITION_CONTROL,
-                                        targetPositions=list(steer), forces=[STEER_SERVO_TORQUE_N_M] * 2,
+            p.setJointMotorControlArray(self.body, self.joints.steering, p.POSITION_CONTROL,
+                                        targetPositions=steer, forces=[STEER_SERVO_TORQUE_N_M] * 2,
                                         physicsClientId=self.cid)
             self._last_steer = steer
-        brake = tuple(round(float(b), 3) for b in brake_torque_n_m)
+        brake = round(brake_torque_n_m, 3)
         if brake != self._last_brake:
-            p.setJointMotorControlArray(self.body, list(self.joints.wheels), p.VELOCITY_CONTROL,
-                                        targetVelocities=[0.0] * 4, forces=list(brake), physicsClientId=self.cid)
+            p.setJointMotorControlArray(self.body, self.joints.wheels, p.VELOCITY_CONTROL,
+                                        targetVelocities=[0.0] * 4, forces=[brake] * 4, physicsClientId=self.cid)
             self._last_brake = brake
         p.setJointMotorControlArray(self.body, self._torque_joints, p.TORQUE_CONTROL,
-                                    forces=[*suspension_force_n.tolist(), *wheel_torque_n_m.tolist()],
-                                    physicsClientId=self.cid)
+                                    forces=[*suspension_force_n, 0.0, 0.0, rear_wheel_torque_n_m,
+                                            rear_wheel_torque_n_m], physicsClientId=self.cid)
 
 
 __all__ = ["WHEELS", "CarCommander", "CarGeometry", "CarJoints", "create_car_body", "read_suspension",

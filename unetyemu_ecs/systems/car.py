@@ -16,9 +16,10 @@ import numpy as np
 
 from ..components.body import Identity, RigidBody
 from ..components.car import CarBody, CarDynamics, CarRoute
-from ..control.car import CarGuidanceParams, ackermann_angles, drive_torque_n_m, pure_pursuit_steer, route_speed_sp
-from ..control.pursuit import pure_pursuit
-from ..frames import R_from_quat_xyzw
+from ..control.car import (CarGuidanceParams, ackermann_pair_rad, drive_torque_scalar_n_m, pursuit_steer_of,
+                           route_speed_of)
+from ..control.compiled import jit
+from ..control.pursuit import RouteGeometry, project_on_segment, pursue_into
 from ..phases import Phase
 from ..physics.car_body import CarCommander, read_suspension
 from ..transport.bus import Arm, CmdVel, Drive, DriveRoute, SetTarget
@@ -156,12 +157,6 @@ class CarFleetSystem(FleetSystem):
         self.joints = [esper.component_for_entity(e, CarBody).joints for e in ents]
 
 
-def _heading(quat_xyzw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Forward unit vectors (N, 3) and yaw (N,) [rad] from ENU/FLU quaternions."""
-    fwd = R_from_quat_xyzw(quat_xyzw)[:, :, 0]
-    return fwd, np.arctan2(fwd[:, 1], fwd[:, 0])
-
-
 class CarGuidanceSystem(CarFleetSystem):
     """Pure pursuit along each ROUTE-mode car's path and its speed profile. Phase: GUIDANCE (order 20).
 
@@ -182,27 +177,28 @@ class CarGuidanceSystem(CarFleetSystem):
 
     def update(self, ctx: StepContext) -> None:
         f, c = ctx.fleet, self
-        sel = np.flatnonzero(f.drive_mode[c.rows] == DRIVE_ROUTE)
+        sel = (f.drive_mode[c.sel] == DRIVE_ROUTE).nonzero()[0]
         if sel.size == 0:
             return
         r = c.rows[sel]
-        key = (tuple(r.tolist()), tuple(f.path_stamp[r].tolist()))
+        key = r.tobytes() + f.path_stamp[r].tobytes()
         decimation = max(1, round(1.0 / (ROUTE_FOLLOWING_HZ * ctx.dt_s)))
         if key == self._key and ctx.step % decimation:
             return
-        if key != self._key:                       # routes changed: rebuild the padded arrays once
+        if key != self._key:                       # routes changed: their geometry, once
             self._key = key
             self._packed = _pack_paths([f.car_path[i] for i in r])
-        paths, route, speeds, n_points, cum, cruise = self._packed
-        pos = f.pos_enu_m[r].copy()
-        pos[:, 2] = 0.0
-        fwd, yaw = _heading(f.quat_enu_flu_xyzw[r])
-        v = f.car_speed_m_s[r]
-        gains = c.gains
-        lead = np.maximum(gains.lead_min_m[sel], gains.lead_time_s[sel] * np.abs(v))
-        res = pure_pursuit(pos, route, n_points, f.path_segment[r], speeds, lead, np.zeros(len(r)))
-        seg = res.segment.copy()
-        for k, p in enumerate(paths):
+        paths, geo, point_speeds, cruise, open_route = self._packed
+        gains, n = c.gains, r.size
+        seg, done = np.empty(n, dtype=np.intp), np.zeros(n, dtype=bool)
+        n_done = _follow_car_routes(
+            r, sel, f.pos_enu_m, f.R_enu_flu, f.car_speed_m_s, f.path_segment, f.car_steer_rad, gains.lead_min_m,
+            gains.lead_time_s, gains.max_decel_m_s2, gains.arrival_radius_m, c.dyn.wheelbase_m, cruise, open_route,
+            geo.width, geo.last_seg, geo.vec, geo.length2, geo.ok_t, geo.seg_len, geo.cum_start, geo.len_u, geo.ok_u,
+            geo.cum, geo.total, geo.last, point_speeds, f.car_speed_sp_m_s, f.car_steer_sp_rad, seg, done)
+        for k, p in enumerate(paths):              # loops: step back a lap, count laps
+            if not (p.period or p.lap_ends):
+                continue
             laps = int(f.path_laps[r[k]])
             if p.period and seg[k] >= p.wrap_from:
                 seg[k] -= p.period
@@ -214,24 +210,9 @@ class CarGuidanceSystem(CarFleetSystem):
                 name = esper.component_for_entity(int(c.entities[sel[k]]), Identity).name
                 ctx.services.note(ctx.sim_time_s, name, f"route lap {laps} done")
         f.path_segment[r] = seg
-
-        s_along = cum[np.arange(len(r)), res.segment] + _along(pos, route, res.segment)
-        speed_sp = np.minimum(cruise, route_speed_sp(s_along, cum, speeds[:, :, 0], gains.max_decel_m_s2[sel] * 0.6))
-        wheelbase = c.dyn.wheelbase_m[sel]
-        rear_axle = pos - fwd * (wheelbase / 2.0)[:, None]
-        steer = pure_pursuit_steer(res.target_enu_m, rear_axle, yaw, wheelbase)
-
-        # the end of the route: on the last segment, within the arrival radius along the route
-        # (a car that rolled a little past the end counts), and stopped
-        on_last = (res.segment == n_points - 2) & np.array([p.period == 0 for p in paths])
-        along_left = res.dist_to_go_m - res.cross_track_m
-        at_end = on_last & (along_left < gains.arrival_radius_m[sel]) & \
-            (res.dist_to_final_m < 3.0 * gains.arrival_radius_m[sel])
-        done = at_end & (np.abs(v) < STOPPED_SPEED_M_S)
-        speed_sp = np.where(at_end, 0.0, speed_sp)
-        f.car_speed_sp_m_s[r] = speed_sp
-        f.car_steer_sp_rad[r] = np.where(at_end, f.car_steer_rad[r], steer)
-        for k in np.flatnonzero(done):
+        if n_done == 0:
+            return
+        for k in done.nonzero()[0].tolist():
             ent = int(c.entities[sel[k]])
             name = esper.component_for_entity(ent, Identity).name
             laps = len(paths[k].lap_ends)
@@ -243,8 +224,48 @@ class CarGuidanceSystem(CarFleetSystem):
             f.path_laps[r[k]] = laps
 
 
+@jit
+def _follow_car_routes(rows, sel, pos_enu_m, R_enu_flu, car_speed_m_s, path_segment, car_steer_rad, lead_min_m,
+                       lead_time_s, max_decel_m_s2, arrival_radius_m, wheelbase_m, cruise_m_s, open_route, width,
+                       last_seg, vec, length2, ok_t, seg_len, cum_start, len_u, ok_u, cum, total, last, point_speeds,
+                       car_speed_sp_m_s, car_steer_sp_rad, segment, done):
+    """Pure pursuit and the speed profile of the ROUTE cars at fleet ``rows`` (``sel``: their indices among the
+    system's cars, for the per-car parameters; geometry row k is car k's route, on the ground: z = 0). Writes their
+    speed and steering setpoints, their new ``segment`` and ``done`` (stopped at the end of an open route);
+    returns how many are done."""
+    pos, target, speeds = np.zeros(3), np.empty(3), np.empty(3)
+    n_done = 0
+    for k in range(rows.shape[0]):
+        r, i = rows[k], sel[k]
+        pos[0], pos[1] = pos_enu_m[r, 0], pos_enu_m[r, 1]
+        v = car_speed_m_s[r]
+        lead = max(lead_min_m[i], lead_time_s[i] * abs(v))
+        seg, to_go, cross, to_final = pursue_into(pos, path_segment[r], lead, 1e-9, k, width, last_seg, vec, length2,
+                                                  ok_t, seg_len, cum_start, len_u, ok_u, cum, total, last, target,
+                                                  speeds)
+        segment[k] = seg
+        flat = k * (width - 1) + seg
+        t, _ = project_on_segment(pos, vec[flat], length2[flat], ok_t[flat])
+        s_along = cum_start[flat] + t * seg_len[flat]
+        speed_sp = min(cruise_m_s[k], route_speed_of(s_along, cum[k], point_speeds[k], max_decel_m_s2[i] * 0.6))
+        fwd_x, fwd_y = R_enu_flu[r, 0, 0], R_enu_flu[r, 1, 0]
+        half = wheelbase_m[i] / 2.0
+        steer = pursuit_steer_of(target[0], target[1], pos[0] - fwd_x * half, pos[1] - fwd_y * half,
+                                 np.arctan2(fwd_y, fwd_x), wheelbase_m[i])
+        # the end of the route: on the last segment, within the arrival radius along the route
+        # (a car that rolled a little past the end counts), and stopped
+        at_end = open_route[k] and seg == last_seg[k] and to_go - cross < arrival_radius_m[i] and \
+            to_final < 3.0 * arrival_radius_m[i]
+        done[k] = at_end and abs(v) < STOPPED_SPEED_M_S
+        n_done += done[k]
+        car_speed_sp_m_s[r] = 0.0 if at_end else speed_sp
+        car_steer_sp_rad[r] = car_steer_rad[r] if at_end else steer
+    return n_done
+
+
 def _pack_paths(paths: list[CarPath]) -> tuple:
-    """Padded (N, W, 3) points, (N, W) speeds, point counts, cumulative lengths and cruise speeds."""
+    """The paths, their :class:`RouteGeometry` (padded to the longest), the speed limits at their points (N, W),
+    their cruise speeds (N,) and which are open routes (N,) bool (not never-ending loops)."""
     width = max(len(p.points_enu_m) for p in paths)
     route = np.empty((len(paths), width, 3))
     speeds = np.zeros((len(paths), width))
@@ -253,20 +274,10 @@ def _pack_paths(paths: list[CarPath]) -> tuple:
         n = len(p.points_enu_m)
         route[k, :n], route[k, n:] = p.points_enu_m, p.points_enu_m[-1]
         speeds[k, :n], speeds[k, n:] = p.speeds_m_s, p.speeds_m_s[-1]
-    seg_lengths = np.linalg.norm(np.diff(route, axis=1), axis=2)
-    cum = np.concatenate([np.zeros((len(paths), 1)), np.cumsum(seg_lengths, axis=1)], axis=1)
-    cruise = np.array([p.cruise_m_s for p in paths])
-    return paths, route, np.repeat(speeds[:, :, None], 3, axis=2), n_points, cum, cruise
-
-
-def _along(pos: np.ndarray, route: np.ndarray, seg: np.ndarray) -> np.ndarray:
-    """Distance (N,) [m] of each car's projection along its active segment."""
-    m = np.arange(len(seg))
-    a, b = route[m, seg], route[m, seg + 1]
-    d = b - a
-    length = np.linalg.norm(d, axis=1)
-    t = np.clip(np.einsum("ni,ni->n", pos - a, d) / np.maximum(length, 1e-9) ** 2, 0.0, 1.0)
-    return t * length
+    route[:, :, 2] = 0.0                           # followed on the ground
+    geometry = RouteGeometry(route, n_points, np.repeat(speeds[:, :, None], 3, axis=2))
+    return (paths, geometry, speeds, np.array([p.cruise_m_s for p in paths], dtype=float),
+            np.array([p.period == 0 for p in paths]))
 
 
 class CarActuationSystem(CarFleetSystem):
@@ -297,37 +308,63 @@ class CarActuationSystem(CarFleetSystem):
         self._was_parked = _carry_over(self._was_parked, old, True)
         self._still_s = _carry_over(self._still_s, old, 0.0)
         self._gathered = self.entities.copy()
+        self._changed = np.zeros(self.rows.size, dtype=bool)
+        self._wheels = np.empty((self.rows.size, 5))
+        corner_weight_n = self.mass * GRAVITY_M_S2 / 4.0
+        self._rolling_n_m = self.dyn.rolling_resistance_coeff * corner_weight_n * self.dyn.wheel_radius_m
+        self._corner_weight_n = corner_weight_n.tolist()
+        self._stiffness = self.dyn.suspension_stiffness_n_m.tolist()
+        self._damping = self.dyn.suspension_damping_n_s_m.tolist()
         cid = ctx.physics.id
         self._car_commanders = [self._commanders.get(b) or self._commanders.setdefault(b, CarCommander(cid, b, j))
                                  for b, j in zip(self.bodies, self.joints)]
 
     def update(self, ctx: StepContext) -> None:
         f, c = ctx.fleet, self
-        r = c.rows
         dyn = c.dyn
-        cid = ctx.physics.id
+        wheels = self._wheels
+        changed = _wheel_commands(c.rows, f.drive_mode, f.vel_enu_m_s, f.rate_enu_rad_s, f.car_throttle,
+                                  f.car_speed_m_s, f.car_brake, f.car_steer_rad, ctx.dt_s, dyn.max_drive_torque_n_m,
+                                  dyn.top_speed_m_s, dyn.max_brake_torque_n_m, self._rolling_n_m, dyn.wheelbase_m,
+                                  dyn.track_m, self._was_parked, self._still_s, self._changed, wheels)
         commanders = self._car_commanders
-        parked = f.drive_mode[r] == DRIVE_PARKED
-        for i in np.flatnonzero(self._was_parked != parked):
-            commanders[i].allow_sleep(bool(parked[i]))     # only a parked car may sleep
-        self._was_parked = parked
-        still = parked & (np.linalg.norm(f.vel_enu_m_s[r], axis=1) < STILL_M_S) & \
-            (np.linalg.norm(f.rate_enu_rad_s[r], axis=1) < STILL_M_S)
-        self._still_s = np.where(still, self._still_s + ctx.dt_s, 0.0)
-        asleep = self._still_s > ASLEEP_AFTER_S            # Bullet does not integrate it: nothing to send
-        drive = drive_torque_n_m(f.car_throttle[r], f.car_speed_m_s[r], dyn.max_drive_torque_n_m, dyn.top_speed_m_s)
-        corner_weight_n = c.mass * GRAVITY_M_S2 / 4.0
-        rolling = dyn.rolling_resistance_coeff * corner_weight_n * dyn.wheel_radius_m
-        brake = f.car_brake[r] * dyn.max_brake_torque_n_m + rolling
-        steer = ackermann_angles(f.car_steer_rad[r], dyn.wheelbase_m, dyn.track_m)
-        k, damp = dyn.suspension_stiffness_n_m, dyn.suspension_damping_n_s_m
-        for i, (body, joints) in enumerate(zip(c.bodies, c.joints)):
-            if asleep[i]:
-                continue
-            x, xdot = read_suspension(cid, body, joints)
-            spring = -k[i] * x - damp[i] * xdot - corner_weight_n[i]
-            wheel_torque = np.array([0.0, 0.0, drive[i] / 2.0, drive[i] / 2.0])
-            commanders[i].apply(spring, steer[i], wheel_torque, np.full(4, brake[i]))
+        if changed:
+            for i in self._changed.nonzero()[0].tolist():
+                commanders[i].allow_sleep(bool(self._was_parked[i]))     # only a parked car may sleep
+        cid = ctx.physics.id
+        for commander, body, joints, k, damp, weight, (awake, drive, brake, left, right) in zip(
+                commanders, c.bodies, c.joints, self._stiffness, self._damping, self._corner_weight_n,
+                wheels.tolist()):
+            if awake:                                   # an asleep car: Bullet does not integrate it, nothing to send
+                spring = [-k * x - damp * xdot - weight for x, xdot in read_suspension(cid, body, joints)]
+                commander.apply(spring, left, right, drive / 2.0, brake)
+
+
+@jit
+def _wheel_commands(rows, drive_mode, vel_enu_m_s, rate_enu_rad_s, car_throttle, car_speed_m_s, car_brake,
+                    car_steer_rad, dt_s, max_drive_torque_n_m, top_speed_m_s, max_brake_torque_n_m, rolling_n_m,
+                    wheelbase_m, track_m, was_parked, still_s, changed, out):
+    """What each car's wheels get this step, ``out`` (M, 5): awake (1: commands are sent, 0: asleep), the drive
+    torque at the rear axle [N m], each wheel's brake torque [N m] (brakes plus rolling resistance), the left and
+    right front-wheel angles [rad]. Keeps, per row, whether the car was parked (``changed``: it parked or left
+    PARKED this step; returns how many did) and how long it has been parked and still (``still_s`` [s])."""
+    n_changed = 0
+    for k in range(rows.shape[0]):
+        r = rows[k]
+        parked = drive_mode[r] == DRIVE_PARKED
+        changed[k] = parked != was_parked[k]
+        n_changed += changed[k]
+        was_parked[k] = parked
+        v, w = vel_enu_m_s[r], rate_enu_rad_s[r]
+        still = parked and np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) < STILL_M_S and \
+            np.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) < STILL_M_S
+        still_s[k] = still_s[k] + dt_s if still else 0.0
+        out[k, 0] = 0.0 if still_s[k] > ASLEEP_AFTER_S else 1.0
+        out[k, 1] = drive_torque_scalar_n_m(car_throttle[r], car_speed_m_s[r], max_drive_torque_n_m[k],
+                                            top_speed_m_s[k])
+        out[k, 2] = car_brake[r] * max_brake_torque_n_m[k] + rolling_n_m[k]
+        out[k, 3], out[k, 4] = ackermann_pair_rad(car_steer_rad[r], wheelbase_m[k], track_m[k])
+    return n_changed
 
 
 def _carry_over(values: np.ndarray, old_index: np.ndarray, fill: object) -> np.ndarray:
