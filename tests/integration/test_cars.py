@@ -299,3 +299,35 @@ def test_a_two_lap_route_reports_each_lap_and_the_summary_says_two_laps():
         assert laps == ["route lap 1 done", "route lap 2 done"]
         car1 = next(e for e in sim.summary()["entities"] if e["name"] == "c1")
         assert car1["drive"]["laps"] == 2
+
+
+def _settled_support(sim: Simulation, name: str, surface: str) -> tuple[float, float, float]:
+    """(weight [N], normal force the ``surface`` class carries, normal force anything else carries) of a settled car."""
+    cid = sim.physics.id
+    below = next(b for b, cls in sim.static_body_ids.items() if cls.name == surface)
+    body = int(sim.fleet.body_id[sim.row(name)])
+    weight_n = G * sum(p.getDynamicsInfo(body, link, physicsClientId=cid)[0]
+                       for link in range(-1, p.getNumJoints(body, physicsClientId=cid)))
+    contacts = p.getContactPoints(bodyA=body, physicsClientId=cid)
+    return (weight_n, sum(c[9] for c in contacts if c[2] == below), sum(c[9] for c in contacts if c[2] != below))
+
+
+def test_a_car_parked_on_a_road_rests_on_the_road_2_mm_above_the_ground_and_the_road_carries_its_weight():
+    # GIVEN a car parked on a city road (whose surface lies 2 mm above the ground plane) and one on bare ground
+    from unetyemu_ecs.scene.primitives import ROAD_TOP_Z_M
+    city = world("  - {name: c1, type: car, preset: medium, pose: {parking: parking_1}}\n").replace(
+        "scene: {generator: none, ground_size_m: 600}",
+        "scene: {generator: urban, urban: {blocks_x: 2, blocks_y: 2, block_size_m: 40, street_width_m: 12, "
+        "building_height_m: [8, 12], start_pads: 1, target_pads: 0, roof_pads: 0, parking_spots: 1}}")
+    heights = {}
+    for text, name, surface in ((city, "c1", "ROAD"), (world(car("c2")), "c2", "GROUND")):
+        with Simulation(load_world_text(text)) as sim:
+            # WHEN it has settled
+            sim.run(duration=3.0)
+            # THEN the surface beneath carries the whole weight through the tyres, and nothing else any of it
+            weight_n, carried_n, elsewhere_n = _settled_support(sim, name, surface)
+            assert carried_n == pytest.approx(weight_n, rel=0.02), name
+            assert elsewhere_n == pytest.approx(0.0, abs=1e-6), name
+            heights[name] = float(sim.position_enu_m(name)[2])
+    # and the car on the road rides the road's height higher than the one on bare ground
+    assert heights["c1"] - heights["c2"] == pytest.approx(ROAD_TOP_Z_M, abs=5e-4)

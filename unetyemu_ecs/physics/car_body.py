@@ -16,6 +16,12 @@ applies exactly up to that torque to stop the wheel, and holds a stopped car); s
 position servo. A parked car at rest sleeps (Bullet deactivation) until touched or driven.
 Tyre/road friction is PyBullet's contact friction (Bullet multiplies the two
 bodies' coefficients: ``tyre_friction x 0.9`` on the road).
+
+A tyre's contacts reach the solver only within :data:`WHEEL_CONTACT_PROCESSING_M` of touching (Bullet's
+``contactProcessingThreshold``; by default every contact within the 2 cm contact margin does). The road's
+surface lies ``ROAD_TOP_Z_M`` (2 mm) above the ground plane (so that cameras and LiDAR can tell them
+apart), so a tyre on a road would also hand the solver its four contacts with the plane 2 mm below,
+which never push: they made a third of a driving car's physics time.
 """
 
 from __future__ import annotations
@@ -29,9 +35,12 @@ from dataclasses import dataclass
 import numpy as np
 import pybullet as p
 
+from ..scene.primitives import ROAD_TOP_Z_M
+
 WHEELS = ("fl", "fr", "rl", "rr")
 LINK_MASS_KG = 1.0              # suspension and steering knuckles (Featherstone needs mass > 0)
 STEER_SERVO_TORQUE_N_M = 1.0e4  # strong enough that the servo always reaches the commanded angle
+WHEEL_CONTACT_PROCESSING_M = 0.5 * ROAD_TOP_Z_M   # [m] tyre contacts solved within this gap (< the road's height)
 
 
 @dataclass(frozen=True)
@@ -132,6 +141,7 @@ def create_car_body(client_id: int, geometry: CarGeometry, pos_enu_m: Sequence[f
                        tuple(index[f"wheel_{w}"] for w in WHEELS))
     for j in joints.wheels:
         p.changeDynamics(body, j, lateralFriction=float(tyre_friction), rollingFriction=0.0, spinningFriction=0.0,
+                         contactProcessingThreshold=WHEEL_CONTACT_PROCESSING_M,
                          physicsClientId=client_id)
     p.setJointMotorControlArray(body, list(range(n)), p.VELOCITY_CONTROL, forces=[0.0] * n,
                                 physicsClientId=client_id)
