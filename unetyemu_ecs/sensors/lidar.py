@@ -23,6 +23,7 @@ import numpy as np
 
 from ..config.limits import SensorRate
 from ..config.schema import Ge, Gt, Le, Lt
+from ..control.compiled import jit
 from ..phases import Phase
 from ..scene.primitives import SceneClass
 from ..world import StepContext
@@ -120,11 +121,13 @@ class LidarSystem(RaycastSensorSystem):
         table[MOVING_BODY] = BODY_REFLECTIVITY
         self._reflectivity = table
         self._ray_limits: dict[tuple[int, ...], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._ray_starts: dict[tuple[int, ...], np.ndarray] = {}
 
     def gather(self, ctx: StepContext) -> None:
         super().gather(ctx)
         self._patterns = {}
         self._ray_limits = {}
+        self._ray_starts = {}
         for s in self.sensors:
             dirs_s, rings = ray_directions_sensor(s.spec)
             self._patterns[s.entity] = (dirs_s, rings, self.own_exit_m(s, dirs_s))
@@ -134,20 +137,20 @@ class LidarSystem(RaycastSensorSystem):
         hits, cast, slices = self.cast_due(ctx, due, rays)
         dirs_sensor = self._plan(due, rays).dirs_sensor
         rings, min_m, max_m = self._per_ray(due)
-        t = hits.t
-        kept = (t <= max_m) & (t >= min_m)                      # a miss (inf) is never kept
-        # every sensor's points in one array, in sensor order (each cloud is a slice of it), written by
-        # columns from the kept rays (np.compress of contiguous rows: the cheapest selection)
-        cloud = np.empty(int(np.count_nonzero(kept)), dtype=POINT_DTYPE)
-        columns = cloud.view(np.float32).reshape(-1, 5)           # x, y, z, intensity, (ring + padding)
-        np.multiply(np.compress(kept, dirs_sensor, axis=0), np.compress(kept, t)[:, None], out=columns[:, :3])
-        cos_incidence = np.einsum("ij,ij->i", np.compress(kept, hits.normal, axis=0),
-                                  np.compress(kept, cast, axis=0)[:, 3:])
-        np.multiply(self._reflectivity[np.compress(kept, hits.cls)], np.abs(cos_incidence), out=columns[:, 3])
-        cloud.view(np.uint32).reshape(-1, 5)[:, 4] = np.compress(kept, rings)   # ring, then 2 bytes of padding
-        ends = np.cumsum([np.count_nonzero(kept[sl]) for sl in slices]).tolist()
+        # every sensor's points in one array, in sensor order (each cloud is a slice of it)
+        counts = np.empty(len(slices), dtype=np.intp)
+        _count_points(hits.t, min_m, max_m, self._starts(due, slices), counts)
+        cloud = np.empty(int(counts.sum()), dtype=POINT_DTYPE)
+        _write_points(hits.t, dirs_sensor, hits.normal, cast, hits.cls, rings, min_m, max_m, self._reflectivity,
+                      cloud.view(np.float32).reshape(-1, 5), cloud.view(np.uint32).reshape(-1, 5))
+        ends = np.cumsum(counts).tolist()
         for s, a, b in zip(due, [0, *ends[:-1]], ends):
             self.publish(ctx, s, time_s, build=partial(pointcloud2_of_points, cloud[a:b], time_s, s.frame_id))
+
+    def _starts(self, due: list[MountedSensor], slices: list[slice]) -> np.ndarray:
+        """Where each sensor's rays start among the rays of ``due`` cast together, and where the last ends."""
+        return per_sensor_set(self._ray_starts, due, lambda: np.array([sl.start for sl in slices] + [slices[-1].stop],
+                                                                       dtype=np.intp))
 
     def _per_ray(self, due: list[MountedSensor]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Of every ray of ``due`` cast together: its ring as the point's last 4 bytes (uint32 little-endian:
@@ -159,6 +162,35 @@ class LidarSystem(RaycastSensorSystem):
                     np.repeat(np.array([s.spec.max_range_m for s in due], dtype=np.float32), sizes))
 
         return per_sensor_set(self._ray_limits, due, make)
+
+
+@jit
+def _count_points(t, min_m, max_m, starts, counts):
+    """``counts[j]``: how many rays of sensor j (rays ``starts[j]`` to ``starts[j + 1]``) hit within their range."""
+    for j in range(counts.shape[0]):
+        n = 0
+        for i in range(starts[j], starts[j + 1]):
+            n += t[i] <= max_m[i] and t[i] >= min_m[i]           # a miss (inf) never counts
+        counts[j] = n
+
+
+@jit
+def _write_points(t, dirs_sensor, normal, cast, cls, rings, min_m, max_m, reflectivity, columns, words):
+    """The point of every ray that hit within its range, in ray order, as rows of ``columns`` (float32 x, y, z
+    [m] in the sensor frame, intensity) and ``words`` (the same rows as uint32: the ring in the last word, its
+    upper 2 bytes padding). Intensity: the reflectivity of the class hit times the cosine of incidence."""
+    j = 0
+    for i in range(t.shape[0]):
+        ti = t[i]
+        if not (ti <= max_m[i] and ti >= min_m[i]):
+            continue
+        columns[j, 0] = dirs_sensor[i, 0] * ti
+        columns[j, 1] = dirs_sensor[i, 1] * ti
+        columns[j, 2] = dirs_sensor[i, 2] * ti
+        cos_incidence = normal[i, 0] * cast[i, 3] + normal[i, 1] * cast[i, 4] + normal[i, 2] * cast[i, 5]
+        columns[j, 3] = reflectivity[cls[i]] * abs(cos_incidence)
+        words[j, 4] = rings[i]
+        j += 1
 
 
 __all__ = ["LidarSensor", "LidarSystem", "pointcloud2", "pointcloud2_of_points", "ray_directions_sensor", "read_points"]

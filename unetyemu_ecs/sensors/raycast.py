@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from ..control.compiled import jit
 from ..frames import R_from_quat_xyzw
 
 EXIT_MARGIN_M = 0.001
@@ -227,27 +228,59 @@ class RaycastWorld:
         m = len(rays)
         start_static = np.asarray(start_static_m, dtype=np.float32)
         hit = self.static.cast_rays(o3d.core.Tensor.from_numpy(rays), nthreads=self.threads)
-        t = hit["t_hit"].numpy() + start_static
-        normal = hit["primitive_normals"].numpy()
-        cls = self._cls_of_prim[np.minimum(hit["primitive_ids"].numpy(), len(self._tri_cls))]   # NO_HIT: invalid id
-        box = np.full(m, -1, dtype=np.int32)
+        t, normal = hit["t_hit"].numpy(), hit["primitive_normals"].numpy()
+        cls, box = np.empty(m, dtype=np.int16), np.empty(m, dtype=np.int32)
+        _static_hits(t, hit["primitive_ids"].numpy(), start_static, self._cls_of_prim, cls, box)
         idx = np.arange(m) if dynamic_rays is None else np.asarray(dynamic_rays, dtype=np.intp)
         if boxes is not None and len(boxes[0]) and idx.size:
             verts, tris = box_triangles(*boxes)
             dyn = o3d.t.geometry.RaycastingScene()
             dyn.add_triangles(o3d.core.Tensor(verts.astype(np.float32)), o3d.core.Tensor(tris.astype(np.uint32)))
-            start = np.asarray(start_dynamic_m, dtype=np.float32)[idx]
-            sub = rays[idx]
-            sub[:, :3] += (start - start_static[idx])[:, None] * sub[:, 3:]
+            start = np.asarray(start_dynamic_m, dtype=np.float32)
+            sub = np.empty((idx.size, 6), dtype=np.float32)
+            _moving_body_rays(rays, idx, start_static, start, sub)
             dhit = dyn.cast_rays(o3d.core.Tensor.from_numpy(sub), nthreads=self.threads)
-            td = dhit["t_hit"].numpy() + start
-            nearer = td < t[idx]
-            k = idx[nearer]
-            t[k] = td[nearer]
-            normal[k] = dhit["primitive_normals"].numpy()[nearer]
-            cls[k] = MOVING_BODY
-            box[k] = dhit["primitive_ids"].numpy().astype(np.int32)[nearer] // 12
+            _nearer_moving_hits(idx, dhit["t_hit"].numpy(), start, dhit["primitive_ids"].numpy(),
+                                dhit["primitive_normals"].numpy(), t, normal, cls, box)
         return RayHits(t, normal, cls, box)
+
+
+@jit
+def _static_hits(t, prim_ids, start_static, cls_of_prim, cls, box):
+    """The static cast's hits as :class:`RayHits` fields: ``t`` (M,) from the ray origin (the cast's distance plus
+    where the ray started, in place; inf: no hit), ``cls`` the class of the triangle hit (NO_HIT for an invalid
+    primitive id: the last entry of ``cls_of_prim``), ``box`` -1."""
+    no_hit = cls_of_prim.shape[0] - 1
+    for i in range(t.shape[0]):
+        t[i] += start_static[i]
+        cls[i] = cls_of_prim[min(prim_ids[i], no_hit)]
+        box[i] = -1
+
+
+@jit
+def _moving_body_rays(rays, idx, start_static, start_dynamic, sub):
+    """The rays ``idx`` of ``rays`` (start point in the static scene, direction) restarted at their moving-body
+    start distance: ``sub`` (len(idx), 6) float32."""
+    for k in range(idx.shape[0]):
+        i = idx[k]
+        shift = start_dynamic[i] - start_static[i]
+        for c in range(3):
+            sub[k, c] = rays[i, c] + shift * rays[i, 3 + c]
+            sub[k, 3 + c] = rays[i, 3 + c]
+
+
+@jit
+def _nearer_moving_hits(idx, t_hit, start_dynamic, prim_ids, normals, t, normal, cls, box):
+    """Where the moving-body cast of the rays ``idx`` hit nearer than the static scene, that hit wins: its
+    distance, normal, MOVING_BODY and the box it hit (12 triangles per box)."""
+    for k in range(idx.shape[0]):
+        i = idx[k]
+        td = t_hit[k] + start_dynamic[i]
+        if td < t[i]:
+            t[i] = td
+            normal[i, 0], normal[i, 1], normal[i, 2] = normals[k, 0], normals[k, 1], normals[k, 2]
+            cls[i] = MOVING_BODY
+            box[i] = prim_ids[k] // 12
 
 
 __all__ = ["EXIT_MARGIN_M", "MOVING_BODY", "NO_HIT", "DirectionBins", "RayHits", "RaycastWorld", "SensorUnavailable",

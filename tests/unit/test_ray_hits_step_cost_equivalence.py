@@ -1,0 +1,137 @@
+"""The ray-cast sensors' compiled post-processing gives what the numpy formulas gave: the hits of a static and a
+moving-body cast merged into distances, normals, classes and boxes (bit for bit), and the LiDAR's point clouds
+(points and rings bit for bit, intensities to float32 rounding).
+
+The reference code below is the code as it was before those changes, copied verbatim (as functions of the
+objects the methods belonged to)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose, assert_array_equal
+
+from unetyemu_ecs.frames import quat_normalize_xyzw
+from unetyemu_ecs.sensors.lidar import POINT_DTYPE, _count_points, _write_points
+from unetyemu_ecs.sensors.raycast import (EXIT_MARGIN_M, MOVING_BODY, RayHits, RaycastWorld, box_triangles,
+                                          moving_body_candidates)
+
+
+# -- the code before the change (references) -------------------------------------------------------------------------
+def cast_prepared_ref(self, rays, start_static_m, start_dynamic_m, boxes, dynamic_rays=None):
+    o3d = self._o3d
+    m = len(rays)
+    start_static = np.asarray(start_static_m, dtype=np.float32)
+    hit = self.static.cast_rays(o3d.core.Tensor.from_numpy(rays), nthreads=self.threads)
+    t = hit["t_hit"].numpy() + start_static
+    normal = hit["primitive_normals"].numpy()
+    cls = self._cls_of_prim[np.minimum(hit["primitive_ids"].numpy(), len(self._tri_cls))]   # NO_HIT: invalid id
+    box = np.full(m, -1, dtype=np.int32)
+    idx = np.arange(m) if dynamic_rays is None else np.asarray(dynamic_rays, dtype=np.intp)
+    if boxes is not None and len(boxes[0]) and idx.size:
+        verts, tris = box_triangles(*boxes)
+        dyn = o3d.t.geometry.RaycastingScene()
+        dyn.add_triangles(o3d.core.Tensor(verts.astype(np.float32)), o3d.core.Tensor(tris.astype(np.uint32)))
+        start = np.asarray(start_dynamic_m, dtype=np.float32)[idx]
+        sub = rays[idx]
+        sub[:, :3] += (start - start_static[idx])[:, None] * sub[:, 3:]
+        dhit = dyn.cast_rays(o3d.core.Tensor.from_numpy(sub), nthreads=self.threads)
+        td = dhit["t_hit"].numpy() + start
+        nearer = td < t[idx]
+        k = idx[nearer]
+        t[k] = td[nearer]
+        normal[k] = dhit["primitive_normals"].numpy()[nearer]
+        cls[k] = MOVING_BODY
+        box[k] = dhit["primitive_ids"].numpy().astype(np.int32)[nearer] // 12
+    return RayHits(t, normal, cls, box)
+
+
+def lidar_cloud_ref(hits, dirs_sensor, cast, rings, min_m, max_m, reflectivity, slices):
+    t = hits.t
+    kept = (t <= max_m) & (t >= min_m)                      # a miss (inf) is never kept
+    # every sensor's points in one array, in sensor order (each cloud is a slice of it), written by
+    # columns from the kept rays (np.compress of contiguous rows: the cheapest selection)
+    cloud = np.empty(int(np.count_nonzero(kept)), dtype=POINT_DTYPE)
+    columns = cloud.view(np.float32).reshape(-1, 5)           # x, y, z, intensity, (ring + padding)
+    np.multiply(np.compress(kept, dirs_sensor, axis=0), np.compress(kept, t)[:, None], out=columns[:, :3])
+    cos_incidence = np.einsum("ij,ij->i", np.compress(kept, hits.normal, axis=0),
+                              np.compress(kept, cast, axis=0)[:, 3:])
+    np.multiply(reflectivity[np.compress(kept, hits.cls)], np.abs(cos_incidence), out=columns[:, 3])
+    cloud.view(np.uint32).reshape(-1, 5)[:, 4] = np.compress(kept, rings)   # ring, then 2 bytes of padding
+    ends = np.cumsum([np.count_nonzero(kept[sl]) for sl in slices]).tolist()
+    return cloud, ends
+
+
+# -- a small city: ground, a few buildings of other classes, drone-sized moving boxes -------------------------------
+def _scene(rng, near: np.ndarray) -> tuple[RaycastWorld, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """The city, and moving boxes scattered around, one of them 2 m from each point of ``near``."""
+    verts = [np.array([[-300.0, -300.0, 0.0], [300.0, -300.0, 0.0], [300.0, 300.0, 0.0], [-300.0, 300.0, 0.0]])]
+    tris, cls = [np.array([[0, 1, 2], [0, 2, 3]])], [np.array([1, 1])]
+    for k in range(12):
+        v, t = box_triangles(np.array([[rng.uniform(-80, 80), rng.uniform(-80, 80), 10.0]]),
+                             np.array([[0.0, 0.0, 0.0, 1.0]]), np.array([[5.0, 5.0, 10.0]]))
+        tris.append(t + sum(len(x) for x in verts))
+        verts.append(v)
+        cls.append(np.full(12, 2 + k % 4))
+    n_boxes = 30
+    centers = np.column_stack([rng.uniform(-40, 40, n_boxes), rng.uniform(-40, 40, n_boxes), rng.uniform(1, 25, n_boxes)])
+    centers[:len(near)] = near + [2.0, 0.0, 0.0]
+    boxes = (centers, quat_normalize_xyzw(rng.normal(size=(n_boxes, 4))), np.tile([0.3, 0.3, 0.1], (n_boxes, 1)))
+    return RaycastWorld(np.vstack(verts), np.vstack(tris), np.concatenate(cls)), boxes
+
+
+def _rays(rng, n_sensors: int, per_sensor: int):
+    origins = np.repeat(rng.uniform([-30, -30, 2], [30, 30, 30], (n_sensors, 3)), per_sensor, axis=0)
+    dirs = rng.normal(size=(n_sensors * per_sensor, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    start_static = rng.choice([0.0, 0.05, 0.3], len(dirs))
+    start_dynamic = np.where(start_static > 0, start_static + 2 * EXIT_MARGIN_M, 0.0)
+    rays = np.empty((len(dirs), 6), dtype=np.float32)
+    rays[:, :3] = origins + start_static[:, None] * dirs
+    rays[:, 3:] = dirs
+    return origins, rays, start_static.astype(np.float32), start_dynamic.astype(np.float32)
+
+
+@pytest.mark.parametrize("n_sensors, per_sensor, culled", [(1, 500, False), (4, 3000, True), (6, 2000, False)])
+def test_merged_static_and_moving_body_hits_are_bit_for_bit_what_they_were(rng, n_sensors, per_sensor, culled):
+    origins, rays, start_static, start_dynamic = _rays(rng, n_sensors, per_sensor)
+    world, boxes = _scene(rng, origins[::per_sensor])
+    dynamic = None
+    if culled:
+        radii = np.linalg.norm(boxes[2], axis=1) + EXIT_MARGIN_M
+        dynamic = np.concatenate([k * per_sensor + moving_body_candidates(origins[k * per_sensor],
+                                                                          rays[k * per_sensor:(k + 1) * per_sensor, 3:],
+                                                                          np.inf, boxes[0], radii)
+                                  for k in range(n_sensors)])
+    got = world.cast_prepared(rays.copy(), start_static, start_dynamic, boxes, dynamic)
+    want = cast_prepared_ref(world, rays.copy(), start_static, start_dynamic, boxes, dynamic)
+    for name in ("t", "normal", "cls", "box"):
+        assert getattr(got, name).dtype == getattr(want, name).dtype, name
+        assert_array_equal(getattr(got, name), getattr(want, name), err_msg=name)
+    # the scene was seen: sky, the ground, buildings and moving bodies
+    assert np.isinf(got.t).any() and (got.cls == 1).any() and (got.cls == MOVING_BODY).any() and (got.cls > 1).any()
+
+
+@pytest.mark.parametrize("n_sensors, per_sensor", [(1, 800), (5, 1200)])
+def test_lidar_point_clouds_are_what_they_were(rng, n_sensors, per_sensor):
+    origins, rays, start_static, start_dynamic = _rays(rng, n_sensors, per_sensor)
+    world, boxes = _scene(rng, origins[::per_sensor])
+    hits = world.cast_prepared(rays, start_static, start_dynamic, boxes)
+    m = len(rays)
+    dirs_sensor = rng.normal(size=(m, 3)).astype(np.float32)
+    rings = rng.integers(0, 16, m).astype("<u4")
+    min_m = np.repeat(rng.uniform(0.0, 2.0, n_sensors), per_sensor).astype(np.float32)
+    max_m = np.repeat(rng.uniform(20.0, 120.0, n_sensors), per_sensor).astype(np.float32)
+    reflectivity = rng.uniform(0.0, 1.0, 256).astype(np.float32)
+    slices = [slice(k * per_sensor, (k + 1) * per_sensor) for k in range(n_sensors)]
+    want, want_ends = lidar_cloud_ref(hits, dirs_sensor, rays, rings, min_m, max_m, reflectivity, slices)
+    counts = np.empty(n_sensors, dtype=np.intp)
+    _count_points(hits.t, min_m, max_m, np.arange(n_sensors + 1) * per_sensor, counts)
+    got = np.empty(int(counts.sum()), dtype=POINT_DTYPE)
+    _write_points(hits.t, dirs_sensor, hits.normal, rays, hits.cls, rings, min_m, max_m, reflectivity,
+                  got.view(np.float32).reshape(-1, 5), got.view(np.uint32).reshape(-1, 5))
+    assert np.cumsum(counts).tolist() == want_ends
+    for name in ("x", "y", "z", "ring"):
+        assert_array_equal(got[name], want[name], err_msg=name)
+    assert_allclose(got["intensity"], want["intensity"], rtol=2e-7, atol=1e-7)
+    assert 0 < len(got) < m                                     # some rays out of range, some kept
