@@ -68,7 +68,60 @@ def tf_message_cdr(msg: Any) -> bytes:
     return bytes(out)
 
 
-_FAST_CDR = {"tf2_msgs/msg/TFMessage": tf_message_cdr}
+def _cdr_header(out: bytearray, header_: Any) -> None:
+    """Append a std_msgs/Header at a 4-aligned offset."""
+    out += _STAMP.pack(header_.stamp.sec, header_.stamp.nanosec)
+    _cdr_string(out, header_.frame_id)
+
+
+def _cdr_uint8_sequence(out: bytearray, data: Any) -> None:
+    """Append a ``uint8[]`` (its length at the next 4-aligned offset, then its bytes: one copy of a numpy array)."""
+    out += b"\x00" * (-(len(out) - 4) % 4)
+    out += _LENGTH.pack(len(data))
+    out += data if isinstance(data, (bytes, bytearray)) else memoryview(np.ascontiguousarray(data, dtype=np.uint8))
+
+
+_FIELD_TAIL = struct.Struct("<IB")
+
+
+def pointcloud2_cdr(msg: Any) -> bytes:
+    """:func:`serialize` of a ``sensor_msgs/msg/PointCloud2``, byte for byte what rosbags writes: every LiDAR
+    of a fleet publishes one per scan, and rosbags' generic serializer walks the message field by field."""
+    out = bytearray(_CDR_HEADER)
+    _cdr_header(out, msg.header)
+    out += b"\x00" * (-(len(out) - 4) % 4)
+    out += _LENGTH.pack(msg.height) + _LENGTH.pack(msg.width) + _LENGTH.pack(len(msg.fields))
+    for f in msg.fields:
+        _cdr_string(out, f.name)
+        out += b"\x00" * (-(len(out) - 4) % 4)
+        out += _FIELD_TAIL.pack(f.offset, f.datatype)
+        out += b"\x00" * (-(len(out) - 4) % 4)
+        out += _LENGTH.pack(f.count)
+    out += bytes((bool(msg.is_bigendian),))
+    out += b"\x00" * (-(len(out) - 4) % 4)
+    out += _LENGTH.pack(msg.point_step) + _LENGTH.pack(msg.row_step)
+    _cdr_uint8_sequence(out, msg.data)
+    out += bytes((bool(msg.is_dense),))
+    return bytes(out)
+
+
+def image_cdr(msg: Any) -> bytes:
+    """:func:`serialize` of a ``sensor_msgs/msg/Image``, byte for byte what rosbags writes (one copy of the
+    pixels into the message's bytes)."""
+    out = bytearray(_CDR_HEADER)
+    _cdr_header(out, msg.header)
+    out += b"\x00" * (-(len(out) - 4) % 4)
+    out += _LENGTH.pack(msg.height) + _LENGTH.pack(msg.width)
+    _cdr_string(out, msg.encoding)
+    out += bytes((int(msg.is_bigendian) & 0xFF,))
+    out += b"\x00" * (-(len(out) - 4) % 4)
+    out += _LENGTH.pack(msg.step)
+    _cdr_uint8_sequence(out, msg.data)
+    return bytes(out)
+
+
+_FAST_CDR = {"tf2_msgs/msg/TFMessage": tf_message_cdr, "sensor_msgs/msg/PointCloud2": pointcloud2_cdr,
+             "sensor_msgs/msg/Image": image_cdr}
 
 
 def deserialize(data: bytes, name: str) -> Any:
@@ -105,5 +158,5 @@ def diagonal_covariance(variances: np.ndarray | list[float]) -> np.ndarray:
     return np.diag(v).reshape(-1).copy()
 
 
-__all__ = ["NS_PER_S", "deserialize", "diagonal_covariance", "header", "msg_type", "point", "quaternion",
-           "serialize", "stamp", "tf_message_cdr", "typestore", "vector3"]
+__all__ = ["NS_PER_S", "deserialize", "diagonal_covariance", "header", "image_cdr", "msg_type", "point",
+           "pointcloud2_cdr", "quaternion", "serialize", "stamp", "tf_message_cdr", "typestore", "vector3"]
