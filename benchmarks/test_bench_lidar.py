@@ -3,8 +3,8 @@ sensor frame, PointCloud2) for N drones in the default city, next to a bare ``ca
 number of rays on the same static scene, measured in the same run.
 
 Run: python3 -m pytest benchmarks/test_bench_lidar.py --benchmark-only --benchmark-columns=mean,stddev,rounds
-Rays per second are in each result's extra_info (``--benchmark-verbose`` or ``--benchmark-json``) and
-printed at the end of the run.
+Rays per second are in each result's extra_info (``--benchmark-verbose`` or ``--benchmark-json``; from the
+mean) and printed at the end of the run, for the pipeline and the bare cast alike from the best of 5 rounds.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ def _report():
         print(f"\n{name}: {rate / 1e6:.2f} Mrays/s")
 
 
-@pytest.mark.parametrize("n_drones", [1, 30, 100])
+@pytest.mark.parametrize("n_drones", [1, 30, 60, 100])
 def test_lidar_pipeline_for_n_drones(benchmark, n_drones):
     sim = Simulation(load_world_text(city_with_lidar_drones(n_drones)))
     try:
@@ -43,7 +43,7 @@ def test_lidar_pipeline_for_n_drones(benchmark, n_drones):
         benchmark.pedantic(one_tick, rounds=5, iterations=1, warmup_rounds=1)
         rays = n_drones * RAYS_PER_SCAN
         benchmark.extra_info["rays_per_s"] = rays / benchmark.stats.stats.mean
-        RESULTS[f"pipeline, {n_drones} drones"] = rays / benchmark.stats.stats.mean
+        RESULTS[f"pipeline, {n_drones} drones"] = rays / benchmark.stats.stats.min     # best of 5, as the bare cast
         assert sim.sensor("d0", "lidar").width > 0.2 * RAYS_PER_SCAN       # it really sees the city
 
         # the bare cast of the same rays on the same static scene

@@ -12,7 +12,7 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from unetyemu_ecs.frames import quat_normalize_xyzw
-from unetyemu_ecs.sensors.lidar import POINT_DTYPE, _count_points, _write_points
+from unetyemu_ecs.sensors.lidar import POINT_DTYPE, _write_points
 from unetyemu_ecs.sensors.raycast import (EXIT_MARGIN_M, MOVING_BODY, RayHits, RaycastWorld, box_triangles,
                                           moving_body_candidates)
 
@@ -120,18 +120,51 @@ def test_lidar_point_clouds_are_what_they_were(rng, n_sensors, per_sensor):
     m = len(rays)
     dirs_sensor = rng.normal(size=(m, 3)).astype(np.float32)
     rings = rng.integers(0, 16, m).astype("<u4")
-    min_m = np.repeat(rng.uniform(0.0, 2.0, n_sensors), per_sensor).astype(np.float32)
-    max_m = np.repeat(rng.uniform(20.0, 120.0, n_sensors), per_sensor).astype(np.float32)
+    min_m, max_m = rng.uniform(0.0, 2.0, n_sensors).astype(np.float32), rng.uniform(20.0, 120.0, n_sensors).astype(np.float32)
     reflectivity = rng.uniform(0.0, 1.0, 256).astype(np.float32)
     slices = [slice(k * per_sensor, (k + 1) * per_sensor) for k in range(n_sensors)]
-    want, want_ends = lidar_cloud_ref(hits, dirs_sensor, rays, rings, min_m, max_m, reflectivity, slices)
+    want, want_ends = lidar_cloud_ref(hits, dirs_sensor, rays, rings, np.repeat(min_m, per_sensor),
+                                      np.repeat(max_m, per_sensor), reflectivity, slices)
     counts = np.empty(n_sensors, dtype=np.intp)
-    _count_points(hits.t, min_m, max_m, np.arange(n_sensors + 1) * per_sensor, counts)
-    got = np.empty(int(counts.sum()), dtype=POINT_DTYPE)
-    _write_points(hits.t, dirs_sensor, hits.normal, rays, hits.cls, rings, min_m, max_m, reflectivity,
-                  got.view(np.float32).reshape(-1, 5), got.view(np.uint32).reshape(-1, 5))
+    room = np.empty(m, dtype=POINT_DTYPE)
+    _write_points(hits.t, dirs_sensor, hits.normal, rays, hits.cls, rings, np.arange(n_sensors + 1) * per_sensor,
+                  min_m, max_m, reflectivity, room.view(np.float32).reshape(-1, 5), room.view(np.uint32).reshape(-1, 5),
+                  counts)
+    got = room[:int(counts.sum())]
     assert np.cumsum(counts).tolist() == want_ends
     for name in ("x", "y", "z", "ring"):
         assert_array_equal(got[name], want[name], err_msg=name)
     assert_allclose(got["intensity"], want["intensity"], rtol=2e-7, atol=1e-7)
     assert 0 < len(got) < m                                     # some rays out of range, some kept
+
+
+def rays_to_world_ref(plan_basis, R, pos, n, out):
+    """The one matrix product per batch as it was: rows ``[d, start d, 1]`` times ``[[0, R^T], [R^T, 0], [p, 0]]``."""
+    to_world = np.zeros((n, 7, 6), dtype=np.float32)
+    R_t = R.transpose(0, 2, 1)
+    to_world[:, 0:3, 3:6] = R_t
+    to_world[:, 3:6, 0:3] = R_t
+    to_world[:, 6, 0:3] = pos
+    k = len(out) // n
+    np.matmul(plan_basis.reshape(n, k, 7), to_world, out=out.reshape(n, k, 6))
+
+
+@pytest.mark.parametrize("n_sensors, per_sensor", [(1, 100), (7, 5760)])
+def test_rays_in_the_world_are_the_matrix_product_to_float32_rounding(rng, n_sensors, per_sensor):
+    from unetyemu_ecs.frames import R_from_quat_xyzw
+    from unetyemu_ecs.sensors.raycast_system import rays_to_world
+    dirs = rng.normal(size=(n_sensors * per_sensor, 3))
+    dirs = (dirs / np.linalg.norm(dirs, axis=1, keepdims=True)).astype(np.float32)
+    start = rng.choice([0.0, 0.05, 0.4], len(dirs)).astype(np.float32)
+    R = R_from_quat_xyzw(quat_normalize_xyzw(rng.normal(size=(n_sensors, 4))))
+    pos = rng.uniform(-150.0, 150.0, (n_sensors, 3))
+    got, want = np.empty((len(dirs), 6), np.float32), np.empty((len(dirs), 6), np.float32)
+    rays_to_world(dirs, start, np.arange(n_sensors + 1) * per_sensor, R, pos, got)
+    basis = np.hstack([dirs, start[:, None] * dirs, np.ones((len(dirs), 1), dtype=np.float32)])
+    rays_to_world_ref(basis, R, pos, n_sensors, want)
+    assert_allclose(got[:, 3:], want[:, 3:], rtol=0, atol=1e-6)              # unit directions
+    assert_allclose(got[:, :3], want[:, :3], rtol=0, atol=3e-5)              # start points within 150 m
+    # and they are the rotated rays from the sensors' origins, in float64 to float32 rounding
+    exact = np.einsum("nij,nkj->nki", R, dirs.astype(float).reshape(n_sensors, per_sensor, 3)).reshape(-1, 3)
+    assert_allclose(got[:, 3:], exact, rtol=0, atol=1e-7)
+    assert_allclose(got[:, :3], np.repeat(pos, per_sensor, axis=0) + start[:, None] * exact, rtol=0, atol=2e-5)

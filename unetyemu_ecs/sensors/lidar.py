@@ -120,14 +120,12 @@ class LidarSystem(RaycastSensorSystem):
             table[int(cls)] = refl
         table[MOVING_BODY] = BODY_REFLECTIVITY
         self._reflectivity = table
-        self._ray_limits: dict[tuple[int, ...], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
-        self._ray_starts: dict[tuple[int, ...], np.ndarray] = {}
+        self._ray_rings: dict[tuple[int, ...], np.ndarray] = {}
 
     def gather(self, ctx: StepContext) -> None:
         super().gather(ctx)
         self._patterns = {}
-        self._ray_limits = {}
-        self._ray_starts = {}
+        self._ray_rings = {}
         for s in self.sensors:
             dirs_s, rings = ray_directions_sensor(s.spec)
             self._patterns[s.entity] = (dirs_s, rings, self.own_exit_m(s, dirs_s))
@@ -135,62 +133,51 @@ class LidarSystem(RaycastSensorSystem):
     def measure(self, ctx: StepContext, due: list[MountedSensor], time_s: float) -> None:
         rays = [(self._patterns[s.entity][0], self._patterns[s.entity][2]) for s in due]
         hits, cast, slices = self.cast_due(ctx, due, rays)
-        dirs_sensor = self._plan(due, rays).dirs_sensor
-        rings, min_m, max_m = self._per_ray(due)
-        # every sensor's points in one array, in sensor order (each cloud is a slice of it)
+        plan = self._plan(due, rays)
+        rings = self._rings(due)
+        min_m = np.array([s.spec.min_range_m for s in due], dtype=np.float32)
+        max_m = np.array([s.spec.max_range_m for s in due], dtype=np.float32)
+        # every sensor's points in one array, in sensor order (each cloud is a slice of it; room for every ray)
         counts = np.empty(len(slices), dtype=np.intp)
-        _count_points(hits.t, min_m, max_m, self._starts(due, slices), counts)
-        cloud = np.empty(int(counts.sum()), dtype=POINT_DTYPE)
-        _write_points(hits.t, dirs_sensor, hits.normal, cast, hits.cls, rings, min_m, max_m, self._reflectivity,
-                      cloud.view(np.float32).reshape(-1, 5), cloud.view(np.uint32).reshape(-1, 5))
+        room = np.empty(len(rings), dtype=POINT_DTYPE)
+        _write_points(hits.t, plan.dirs_sensor, hits.normal, cast, hits.cls, rings, plan.bounds, min_m, max_m,
+                      self._reflectivity, room.view(np.float32).reshape(-1, 5), room.view(np.uint32).reshape(-1, 5),
+                      counts)
+        cloud = room[:int(counts.sum())]
         ends = np.cumsum(counts).tolist()
         for s, a, b in zip(due, [0, *ends[:-1]], ends):
             self.publish(ctx, s, time_s, build=partial(pointcloud2_of_points, cloud[a:b], time_s, s.frame_id))
 
-    def _starts(self, due: list[MountedSensor], slices: list[slice]) -> np.ndarray:
-        """Where each sensor's rays start among the rays of ``due`` cast together, and where the last ends."""
-        return per_sensor_set(self._ray_starts, due, lambda: np.array([sl.start for sl in slices] + [slices[-1].stop],
-                                                                       dtype=np.intp))
-
-    def _per_ray(self, due: list[MountedSensor]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Of every ray of ``due`` cast together: its ring as the point's last 4 bytes (uint32 little-endian:
-        the uint16 ring, then 2 bytes of zero padding) and its kept range [min, max] (float32, m)."""
-        def make() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-            sizes = [len(self._patterns[s.entity][1]) for s in due]
-            return (np.concatenate([self._patterns[s.entity][1] for s in due]).astype("<u4"),
-                    np.repeat(np.array([s.spec.min_range_m for s in due], dtype=np.float32), sizes),
-                    np.repeat(np.array([s.spec.max_range_m for s in due], dtype=np.float32), sizes))
-
-        return per_sensor_set(self._ray_limits, due, make)
+    def _rings(self, due: list[MountedSensor]) -> np.ndarray:
+        """The ring of every ray of ``due`` cast together, as the point's last 4 bytes (uint32 little-endian: the
+        uint16 ring, then 2 bytes of zero padding)."""
+        return per_sensor_set(self._ray_rings, due, lambda: np.concatenate([self._patterns[s.entity][1]
+                                                                            for s in due]).astype("<u4"))
 
 
 @jit
-def _count_points(t, min_m, max_m, starts, counts):
-    """``counts[j]``: how many rays of sensor j (rays ``starts[j]`` to ``starts[j + 1]``) hit within their range."""
-    for j in range(counts.shape[0]):
-        n = 0
-        for i in range(starts[j], starts[j + 1]):
-            n += t[i] <= max_m[i] and t[i] >= min_m[i]           # a miss (inf) never counts
-        counts[j] = n
-
-
-@jit
-def _write_points(t, dirs_sensor, normal, cast, cls, rings, min_m, max_m, reflectivity, columns, words):
-    """The point of every ray that hit within its range, in ray order, as rows of ``columns`` (float32 x, y, z
-    [m] in the sensor frame, intensity) and ``words`` (the same rows as uint32: the ring in the last word, its
-    upper 2 bytes padding). Intensity: the reflectivity of the class hit times the cosine of incidence."""
-    j = 0
-    for i in range(t.shape[0]):
-        ti = t[i]
-        if not (ti <= max_m[i] and ti >= min_m[i]):
-            continue
-        columns[j, 0] = dirs_sensor[i, 0] * ti
-        columns[j, 1] = dirs_sensor[i, 1] * ti
-        columns[j, 2] = dirs_sensor[i, 2] * ti
-        cos_incidence = normal[i, 0] * cast[i, 3] + normal[i, 1] * cast[i, 4] + normal[i, 2] * cast[i, 5]
-        columns[j, 3] = reflectivity[cls[i]] * abs(cos_incidence)
-        words[j, 4] = rings[i]
-        j += 1
+def _write_points(t, dirs_sensor, normal, cast, cls, rings, bounds, min_m, max_m, reflectivity, columns, words,
+                  counts):
+    """The point of every ray that hit within its sensor's range [``min_m[j]``, ``max_m[j]``] (sensor j's rays:
+    ``bounds[j]`` to ``bounds[j + 1]``), in ray order, as rows of ``columns`` (float32 x, y, z [m] in the sensor
+    frame, intensity) and ``words`` (the same rows as uint32: the ring in the last word, its upper 2 bytes
+    padding); ``counts[j]`` how many sensor j has. Intensity: the class's reflectivity times the cosine of
+    incidence. A miss (inf) is never kept."""
+    n = 0
+    for j in range(bounds.shape[0] - 1):
+        first, lo, hi = n, min_m[j], max_m[j]
+        for i in range(bounds[j], bounds[j + 1]):
+            ti = t[i]
+            if not (ti <= hi and ti >= lo):
+                continue
+            columns[n, 0] = dirs_sensor[i, 0] * ti
+            columns[n, 1] = dirs_sensor[i, 1] * ti
+            columns[n, 2] = dirs_sensor[i, 2] * ti
+            cos_incidence = normal[i, 0] * cast[i, 3] + normal[i, 1] * cast[i, 4] + normal[i, 2] * cast[i, 5]
+            columns[n, 3] = reflectivity[cls[i]] * abs(cos_incidence)
+            words[n, 4] = rings[i]
+            n += 1
+        counts[j] = n - first
 
 
 __all__ = ["LidarSensor", "LidarSystem", "pointcloud2", "pointcloud2_of_points", "ray_directions_sensor", "read_points"]

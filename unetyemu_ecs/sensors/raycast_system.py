@@ -12,6 +12,7 @@ import esper
 import numpy as np
 
 from ..components.body import FleetSlot, RigidBody
+from ..control.compiled import jit
 from ..frames import R_from_quat_xyzw
 from ..world import StepContext
 from .base import MountedSensor, SensorSystemBase
@@ -75,22 +76,12 @@ class RaycastSensorSystem(SensorSystemBase):
         plan = self._plan(due, rays)
         pos, R = self.sensor_poses(ctx, plan)
         boxes = self.moving_boxes(ctx)
-        # every ray's start point and direction in one product: [d, start d, 1] @ [[0, R^T], [R^T, 0], [p, 0]]
-        to_world = np.zeros((len(due), 7, 6), dtype=np.float32)
-        R_t = R.transpose(0, 2, 1)
-        to_world[:, 0:3, 3:6] = R_t
-        to_world[:, 3:6, 0:3] = R_t
-        to_world[:, 6, 0:3] = pos
-        out = np.empty((len(plan.basis), 6), dtype=np.float32)     # Open3D's rows: start point, direction
-        if plan.bins is not None:                       # one pattern for all: one product, binned culling
-            n = len(due)
-            k = len(out) // n
-            np.matmul(plan.basis.reshape(n, k, 7), to_world, out=out.reshape(n, k, 6))
+        out = np.empty((len(plan.dirs_sensor), 6), dtype=np.float32)     # Open3D's rows: start point, direction
+        rays_to_world(plan.dirs_sensor, plan.start_static_m, plan.bounds, R, pos, out)
+        if plan.bins is not None:                       # one pattern for all: binned culling
             dynamic = moving_body_candidates_binned(pos, R, out[:, 3:], plan.bins, plan.max_range_m, boxes[0],
                                                     self._body_radius, plan.own_box)
         else:
-            for j, sl in enumerate(plan.slices):
-                np.matmul(plan.basis[sl], to_world[j], out=out[sl])
             dynamic = np.concatenate([sl.start + moving_body_candidates(pos[j], out[sl, 3:], plan.max_range_m[j],
                                                                         boxes[0], self._body_radius, int(plan.own_box[j]))
                                       for j, sl in enumerate(plan.slices)]).astype(np.intp)
@@ -100,6 +91,22 @@ class RaycastSensorSystem(SensorSystemBase):
     def _plan(self, due: list[MountedSensor], rays: list[tuple[np.ndarray, np.ndarray]]) -> "CastPlan":
         """The stacked, per-ray arrays of casting ``due`` together (:func:`per_sensor_set`)."""
         return per_sensor_set(self._plans, due, lambda: _make_plan(due, rays, self._body_rows))
+
+
+@jit
+def rays_to_world(dirs_sensor, start_static_m, bounds, R_world_sensor, origins_m, out):
+    """Every ray of N sensors in Open3D's layout, ``out`` (M, 6) float32: where it starts in the static scene
+    (``origin + start_static * R d``) and its unit direction ``R d`` in the world; sensor j's rays (sensor frame,
+    ``dirs_sensor``) are rows ``bounds[j]`` to ``bounds[j + 1]``, its pose ``R_world_sensor[j]``, ``origins_m[j]``."""
+    for j in range(bounds.shape[0] - 1):
+        R, o = R_world_sensor[j], origins_m[j]
+        for i in range(bounds[j], bounds[j + 1]):
+            d0, d1, d2 = np.float64(dirs_sensor[i, 0]), np.float64(dirs_sensor[i, 1]), np.float64(dirs_sensor[i, 2])
+            start = np.float64(start_static_m[i])
+            for c in range(3):
+                w = R[c, 0] * d0 + R[c, 1] * d1 + R[c, 2] * d2
+                out[i, 3 + c] = w
+                out[i, c] = o[c] + start * w
 
 
 def per_sensor_set(cache: dict[tuple[int, ...], Any], due: list[MountedSensor], make: Callable[[], Any]) -> Any:
@@ -133,8 +140,7 @@ def _make_plan(due: list[MountedSensor], rays: list[tuple[np.ndarray, np.ndarray
         mount_xyz_m=np.array([s.spec.mount_xyz_m for s in due], dtype=float).reshape(-1, 3),
         R_body_sensor=R_from_quat_xyzw(np.array([s.spec.mount_quat_xyzw() for s in due])).reshape(-1, 3, 3),
         dirs_sensor=dirs_sensor,
-        basis=np.hstack([dirs_sensor, start_static[:, None] * dirs_sensor,
-                         np.ones((len(dirs_sensor), 1), dtype=np.float32)]),
+        bounds=bounds.astype(np.intp),
         start_static_m=start_static,
         start_dynamic_m=np.concatenate([b for _, b in starts]).astype(np.float32),
         slices=[slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])],
@@ -148,9 +154,8 @@ class CastPlan:
 
     - their fleet rows, the index of each one's own vehicle among the moving boxes (-1: none), their
       mounts (position in base_link [m], rotation base_link <- sensor);
-    - their rays stacked in the sensor frames (sum M, 3) float32, and as rows ``[d, start_static d, 1]``
-      (sum M, 7) that one product per sensor takes to the world (a matrix product writes Open3D's
-      interleaved rows 5x faster than element-wise numpy into them);
+    - their rays stacked in the sensor frames (sum M, 3) float32, and where each sensor's rays start and the
+      last ends among them (``bounds``, N + 1);
     - the start distances of each ray in the static and moving-body scenes (float32), each sensor's
       slice and range, and the direction bins of their shared pattern (None when the patterns differ).
     """
@@ -160,7 +165,7 @@ class CastPlan:
     mount_xyz_m: np.ndarray
     R_body_sensor: np.ndarray
     dirs_sensor: np.ndarray
-    basis: np.ndarray
+    bounds: np.ndarray
     start_static_m: np.ndarray
     start_dynamic_m: np.ndarray
     slices: list[slice]
@@ -168,4 +173,4 @@ class CastPlan:
     bins: DirectionBins | None
 
 
-__all__ = ["MAX_PLANS", "CastPlan", "RaycastSensorSystem", "per_sensor_set"]
+__all__ = ["MAX_PLANS", "CastPlan", "RaycastSensorSystem", "per_sensor_set", "rays_to_world"]
