@@ -3,7 +3,9 @@ speed and course control, and the route speed profile.
 
 Frames: world ENU; the car body is FLU (x forward, y left). Steering angle ``delta`` [rad] is the
 bicycle-model front-wheel angle, positive = left (counter-clockwise turn, like yaw). No esper, no
-PyBullet: every function takes and returns arrays of N cars.
+PyBullet: every public function takes and returns arrays of N cars. Each law is written once for one
+car and compiled (``*_of``, ``*_scalar_*``, ``ackermann_pair_rad``: what per-step kernels call); the
+array functions are that code as a ufunc or a compiled loop over the cars (see ``compiled.py``).
 """
 
 from __future__ import annotations
@@ -315,14 +317,22 @@ __all__ = [
     "CarGuidanceParams",
     "SpeedSteerGains",
     "ackermann_angles",
+    "ackermann_pair_rad",
     "bicycle_limit_rad",
+    "bicycle_limit_scalar_rad",
     "corner_speeds_m_s",
     "drive_torque_n_m",
+    "drive_torque_scalar_n_m",
     "pure_pursuit_steer",
+    "pursuit_steer_of",
+    "route_speed_of",
     "route_speed_sp",
     "speed_pi_steer_law",
     "speed_to_throttle_brake",
+    "steer_for_yaw_rate_rad",
     "steer_limit_rad",
+    "steer_limit_scalar_rad",
+    "throttle_brake_of",
     "yaw_rate_to_steer",
 ]
 
