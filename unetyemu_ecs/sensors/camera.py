@@ -159,10 +159,10 @@ class _CameraSystem(RaycastSensorSystem):
         views = [view_key(s) for s in due]
         todo = [k for k, view in enumerate(views) if view not in shared]
         if todo:
-            hits, cast, slices = self.cast_due(ctx, [due[k] for k in todo],
-                                                   [(self._rays[due[k].entity][0], self._rays[due[k].entity][2])
-                                                    for k in todo])
-            for k, sl in zip(todo, slices):
+            hits, cast, plan = self.cast_due(ctx, [due[k] for k in todo],
+                                             [(self._rays[due[k].entity][0], self._rays[due[k].entity][2])
+                                              for k in todo])
+            for k, sl in zip(todo, plan.slices):
                 shared[views[k]] = (hits, sl, cast[sl, 3:])
         return [shared[view] for view in views]
 

@@ -120,25 +120,22 @@ class LidarSystem(RaycastSensorSystem):
             table[int(cls)] = refl
         table[MOVING_BODY] = BODY_REFLECTIVITY
         self._reflectivity = table
-        self._ray_rings: dict[tuple[int, ...], np.ndarray] = {}
+        self._ray_limits: dict[tuple[int, ...], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
     def gather(self, ctx: StepContext) -> None:
         super().gather(ctx)
         self._patterns = {}
-        self._ray_rings = {}
+        self._ray_limits = {}
         for s in self.sensors:
             dirs_s, rings = ray_directions_sensor(s.spec)
             self._patterns[s.entity] = (dirs_s, rings, self.own_exit_m(s, dirs_s))
 
     def measure(self, ctx: StepContext, due: list[MountedSensor], time_s: float) -> None:
         rays = [(self._patterns[s.entity][0], self._patterns[s.entity][2]) for s in due]
-        hits, cast, slices = self.cast_due(ctx, due, rays)
-        plan = self._plan(due, rays)
-        rings = self._rings(due)
-        min_m = np.array([s.spec.min_range_m for s in due], dtype=np.float32)
-        max_m = np.array([s.spec.max_range_m for s in due], dtype=np.float32)
+        hits, cast, plan = self.cast_due(ctx, due, rays)
+        rings, min_m, max_m = self._per_ray(due)
         # every sensor's points in one array, in sensor order (each cloud is a slice of it; room for every ray)
-        counts = np.empty(len(slices), dtype=np.intp)
+        counts = np.empty(len(due), dtype=np.intp)
         room = np.empty(len(rings), dtype=POINT_DTYPE)
         _write_points(hits.t, plan.dirs_sensor, hits.normal, cast, hits.cls, rings, plan.bounds, min_m, max_m,
                       self._reflectivity, room.view(np.float32).reshape(-1, 5), room.view(np.uint32).reshape(-1, 5),
@@ -148,11 +145,15 @@ class LidarSystem(RaycastSensorSystem):
         for s, a, b in zip(due, [0, *ends[:-1]], ends):
             self.publish(ctx, s, time_s, build=partial(pointcloud2_of_points, cloud[a:b], time_s, s.frame_id))
 
-    def _rings(self, due: list[MountedSensor]) -> np.ndarray:
-        """The ring of every ray of ``due`` cast together, as the point's last 4 bytes (uint32 little-endian: the
-        uint16 ring, then 2 bytes of zero padding)."""
-        return per_sensor_set(self._ray_rings, due, lambda: np.concatenate([self._patterns[s.entity][1]
-                                                                            for s in due]).astype("<u4"))
+    def _per_ray(self, due: list[MountedSensor]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Of ``due`` cast together: the ring of every ray as the point's last 4 bytes (uint32 little-endian: the
+        uint16 ring, then 2 bytes of zero padding), and each sensor's kept range [min, max] (float32, m)."""
+        def make() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            return (np.concatenate([self._patterns[s.entity][1] for s in due]).astype("<u4"),
+                    np.array([s.spec.min_range_m for s in due], dtype=np.float32),
+                    np.array([s.spec.max_range_m for s in due], dtype=np.float32))
+
+        return per_sensor_set(self._ray_limits, due, make)
 
 
 @jit

@@ -66,12 +66,12 @@ class RaycastSensorSystem(SensorSystemBase):
         return f.pos_enu_m[self._body_rows], f.quat_enu_flu_xyzw[self._body_rows], self._body_half
 
     def cast_due(self, ctx: StepContext, due: list[MountedSensor], rays: list[tuple[np.ndarray, np.ndarray]]
-                 ) -> tuple[Any, np.ndarray, list[slice]]:
+                 ) -> tuple[Any, np.ndarray, "CastPlan"]:
         """Cast every due sensor's rays in one batch.
 
         rays : per sensor, (directions (M, 3) in the sensor frame, own-hull exit distances (M,))
         Returns the hits, the rays as cast (sum M, 6) float32: where each starts in the static scene and its
-        unit direction, world frame) and each sensor's slice of them.
+        unit direction, world frame) and the :class:`CastPlan` of ``due`` (each sensor's slice of them, ...).
         """
         plan = self._plan(due, rays)
         pos, R = self.sensor_poses(ctx, plan)
@@ -86,7 +86,7 @@ class RaycastSensorSystem(SensorSystemBase):
                                                                         boxes[0], self._body_radius, int(plan.own_box[j]))
                                       for j, sl in enumerate(plan.slices)]).astype(np.intp)
         hits = self.world.cast_prepared(out, plan.start_static_m, plan.start_dynamic_m, boxes, dynamic)
-        return hits, out, plan.slices
+        return hits, out, plan
 
     def _plan(self, due: list[MountedSensor], rays: list[tuple[np.ndarray, np.ndarray]]) -> "CastPlan":
         """The stacked, per-ray arrays of casting ``due`` together (:func:`per_sensor_set`)."""

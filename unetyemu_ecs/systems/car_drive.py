@@ -64,12 +64,13 @@ def _finite(value):
 
 @jit
 def _apply_drive(rows, controlled, throttle, brake, steer, drive_mode, drive_cmd, car_speed_m_s, max_steer_rad,
-                 steer_scale_at_50_m_s, wheelbase_m, track_m, max_steer_step_rad, car_steer_rad, car_throttle,
-                 car_brake):
+                 steer_scale_at_50_m_s, wheelbase_m, track_m, max_steer_rate_rad_s, dt_s, car_steer_rad,
+                 car_throttle, car_brake):
     """Throttle, brake and steering of every car at ``rows``: the controller's (``throttle``, ``brake``,
     ``steer`` for the ``controlled`` rows in order; NaN and infinities 0, throttle and brake clamped), the
     teleop's in MANUAL (steering scaled by the limit), full brake when PARKED, nothing otherwise; the
-    steering then limited so the inner wheel stays within its speed-dependent limit, and slewed."""
+    steering then limited so the inner wheel stays within its speed-dependent limit, and slewed at
+    ``max_steer_rate_rad_s`` over the step ``dt_s``."""
     j = 0
     for k in range(rows.shape[0]):
         r = rows[k]
@@ -88,7 +89,8 @@ def _apply_drive(rows, controlled, throttle, brake, steer, drive_mode, drive_cmd
             th, br = 0.0, 1.0
         st = min(max(st, -limit), limit)
         prev = car_steer_rad[r]
-        car_steer_rad[r] = prev + min(max(st - prev, -max_steer_step_rad[k]), max_steer_step_rad[k])
+        step = max_steer_rate_rad_s[k] * dt_s
+        car_steer_rad[r] = prev + min(max(st - prev, -step), step)
         car_throttle[r] = th
         car_brake[r] = br
 
@@ -143,10 +145,9 @@ class DriveControllerSystem(ControllerSystem):
             params, chassis = self.take_rows(k, self.params, self.chassis)
             out: CarCommand = self.call_law(ctx, CarSetpoint(*inputs[:3]), CarState(*inputs[3:]), chassis, params, rk)
             throttle, brake, steer = _law_rows(out.throttle, n), _law_rows(out.brake, n), _law_rows(out.steer_rad, n)
-        step_rad = self._max_steer_rate_rad_s * ctx.dt_s
         _apply_drive(r, controlled, throttle, brake, steer, f.drive_mode, f.drive_cmd, f.car_speed_m_s,
-                     self._max_steer_rad, dyn.steer_scale_at_50_m_s, dyn.wheelbase_m, dyn.track_m, step_rad,
-                     f.car_steer_rad, f.car_throttle, f.car_brake)
+                     self._max_steer_rad, dyn.steer_scale_at_50_m_s, dyn.wheelbase_m, dyn.track_m,
+                     self._max_steer_rate_rad_s, ctx.dt_s, f.car_steer_rad, f.car_throttle, f.car_brake)
 
 
 DRIVE_REQUIRES = (CarDynamics, RigidBody)     # the components of a drive controller's rows, besides its params
