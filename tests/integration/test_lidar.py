@@ -143,3 +143,26 @@ def test_a_lidar_cast_on_one_thread_sees_the_same_walls():
     assert np.array_equal(scans[0], scans[1])
     with pytest.raises(ValueError, match="raycast_threads must be an integer"):
         Simulation(load_world_text(world(car("c1"))), raycast_threads=-1)
+
+
+def test_a_cloud_kept_from_an_earlier_scan_stays_as_it_was_while_later_scans_reuse_memory():
+    # GIVEN a drone climbing in the room with a LiDAR, and a scan kept by its reader
+    drone = ("  - name: d1\n    type: quadrotor\n    preset: medium\n    pose: {position_m: [0.0, 0.0, 0.3]}\n"
+             "    components: {lidar: {}}\n")
+    with Simulation(load_world_text(world(drone))) as sim:
+        sim.set_target("d1", 0.0, 0.0, 8.0)
+        sim.run(duration=1.0)
+        kept = sim.sensor("d1", "lidar")
+        kept_points = read_points(kept).copy()
+        # WHEN twenty more scans are taken (their arrays are free again once the next scan replaces them)
+        later = []
+        for _ in range(20):
+            sim.run(duration=0.1)
+            msg = sim.sensor("d1", "lidar")
+            later.append((np.asarray(msg.data).ctypes.data, read_points(msg).copy()))
+            del msg
+        # THEN the kept scan is untouched, the later ones differ from it (the drone climbed), and they were
+        # written into a few reused arrays, not twenty new ones
+        assert np.array_equal(read_points(kept), kept_points)
+        assert all(len(points) != len(kept_points) or not np.array_equal(points, kept_points) for _, points in later)
+        assert len({address for address, _ in later}) <= 3

@@ -1,6 +1,7 @@
 """The ray-cast sensors' compiled post-processing gives what the numpy formulas gave: the hits of a static and a
-moving-body cast merged into distances, normals, classes and boxes (bit for bit), and the LiDAR's point clouds
-(points and rings bit for bit, intensities to float32 rounding).
+moving-body cast merged into distances, normals, classes and boxes (bit for bit), the LiDAR's point clouds
+(points and rings bit for bit, intensities to float32 rounding) and the rays culled for the moving-body cast (the
+same rays).
 
 The reference code below is the code as it was before those changes, copied verbatim (as functions of the
 objects the methods belonged to)."""
@@ -14,7 +15,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from unetyemu_ecs.frames import quat_normalize_xyzw
 from unetyemu_ecs.sensors.lidar import POINT_DTYPE, _write_points
 from unetyemu_ecs.sensors.raycast import (EXIT_MARGIN_M, MOVING_BODY, RayHits, RaycastWorld, box_triangles,
-                                          moving_body_candidates)
+                                          direction_bins, moving_body_candidates, moving_body_candidates_binned)
 
 
 # -- the code before the change (references) -------------------------------------------------------------------------
@@ -60,6 +61,44 @@ def lidar_cloud_ref(hits, dirs_sensor, cast, rings, min_m, max_m, reflectivity, 
     cloud.view(np.uint32).reshape(-1, 5)[:, 4] = np.compress(kept, rings)   # ring, then 2 bytes of padding
     ends = np.cumsum([np.count_nonzero(kept[sl]) for sl in slices]).tolist()
     return cloud, ends
+
+
+def moving_body_candidates_binned_ref(origins_m, R_world_sensor, dirs_world, bins, max_range_m, centers_m, radii_m,
+                                      exclude):
+    n = len(origins_m)
+    k_rays = len(dirs_world) // max(n, 1)
+    v = centers_m[None, :, :] - origins_m[:, None, :]                          # (N, B, 3)
+    dist = np.sqrt(np.einsum("nbi,nbi->nb", v, v))
+    near = dist - radii_m[None, :] <= np.asarray(max_range_m, dtype=float)[:, None]
+    own = np.asarray(exclude, dtype=np.intp)
+    mine = own >= 0
+    near[np.flatnonzero(mine), own[mine]] = False
+    sensor, body = np.nonzero(near)
+    if sensor.size == 0:
+        return np.empty(0, dtype=np.intp)
+    d, r = dist[sensor, body], radii_m[body]
+    inside = d <= r                                                            # every ray of that sensor
+    whole = np.unique(sensor[inside])
+    out = [(whole[:, None] * k_rays + np.arange(k_rays)[None, :]).reshape(-1)] if whole.size else []
+    keep = ~inside & ~np.isin(sensor, whole)
+    sensor, body, d, r = sensor[keep], body[keep], d[keep], r[keep]
+    if sensor.size:
+        vp = v[sensor, body]                                                   # (P, 3) world
+        u = np.einsum("pji,pj->pi", R_world_sensor[sensor], vp) / d[:, None]   # unit, sensor frame
+        reach = np.arcsin(r / d)
+        cos_bin = np.clip(u @ bins.axis.T, -1.0, 1.0)                         # (P, bins)
+        pair, cell = np.nonzero(np.arccos(cos_bin) <= reach[:, None] + bins.half_angle_rad[None, :])
+        if pair.size:
+            sizes = np.diff(bins.starts)[cell]
+            first = np.repeat(bins.starts[cell] - np.concatenate([[0], np.cumsum(sizes)[:-1]]), sizes)
+            ray = bins.order[first + np.arange(sizes.sum())] + np.repeat(sensor[pair] * k_rays, sizes)
+            p = np.repeat(pair, sizes)
+            along = np.einsum("mi,mi->m", dirs_world[ray], vp[p])
+            hit = along >= np.sqrt(d[p] ** 2 - r[p] ** 2)
+            out.append(ray[hit])
+    if not out:
+        return np.empty(0, dtype=np.intp)
+    return np.unique(np.concatenate(out)).astype(np.intp)
 
 
 # -- a small city: ground, a few buildings of other classes, drone-sized moving boxes -------------------------------
@@ -150,7 +189,7 @@ def rays_to_world_ref(plan_basis, R, pos, n, out):
 
 
 @pytest.mark.parametrize("n_sensors, per_sensor", [(1, 100), (7, 5760)])
-def test_rays_in_the_world_are_the_matrix_product_to_float32_rounding(rng, n_sensors, per_sensor):
+def test_rays_in_the_world_are_the_matrix_product_to_float32_precision(rng, n_sensors, per_sensor):
     from unetyemu_ecs.frames import R_from_quat_xyzw
     from unetyemu_ecs.sensors.raycast_system import rays_to_world
     dirs = rng.normal(size=(n_sensors * per_sensor, 3))
@@ -164,7 +203,41 @@ def test_rays_in_the_world_are_the_matrix_product_to_float32_rounding(rng, n_sen
     rays_to_world_ref(basis, R, pos, n_sensors, want)
     assert_allclose(got[:, 3:], want[:, 3:], rtol=0, atol=1e-6)              # unit directions
     assert_allclose(got[:, :3], want[:, :3], rtol=0, atol=3e-5)              # start points within 150 m
-    # and they are the rotated rays from the sensors' origins, in float64 to float32 rounding
+    # and they are the rotated rays from the sensors' origins to float32 arithmetic (a few ulps of a unit vector;
+    # positions within 150 m to their float32 rounding plus that)
     exact = np.einsum("nij,nkj->nki", R, dirs.astype(float).reshape(n_sensors, per_sensor, 3)).reshape(-1, 3)
-    assert_allclose(got[:, 3:], exact, rtol=0, atol=1e-7)
+    assert_allclose(got[:, 3:], exact, rtol=0, atol=2.5e-7)
     assert_allclose(got[:, :3], np.repeat(pos, per_sensor, axis=0) + start[:, None] * exact, rtol=0, atol=2e-5)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_rays_culled_for_the_moving_body_cast_are_the_rays_they_were(seed):
+    # 40 LiDARs (360 x 16) among 150 drone-sized bodies: each rides one (its own, excluded), some have a body right
+    # beside them, two sit inside another body's sphere, ranges differ, a few bodies lie beyond every range
+    from unetyemu_ecs.frames import R_from_quat_xyzw
+    from unetyemu_ecs.sensors.lidar import LidarSensor, ray_directions_sensor
+    rng = np.random.default_rng(seed)
+    pattern, _ = ray_directions_sensor(LidarSensor())
+    n, n_bodies = 40, 150
+    origins = np.column_stack([rng.uniform(-60, 60, n), rng.uniform(-60, 60, n), rng.uniform(2, 30, n)])
+    R = R_from_quat_xyzw(quat_normalize_xyzw(rng.normal(size=(n, 4))))
+    centers = np.vstack([origins, np.column_stack([rng.uniform(-200, 200, n_bodies - n),
+                                                  rng.uniform(-200, 200, n_bodies - n), rng.uniform(1, 40, n_bodies - n)])])
+    centers[n:n + 2] = origins[[7, 21]] + rng.uniform(-0.1, 0.1, (2, 3))          # sensors 7 and 21 inside a sphere
+    centers[n + 2:n + 10] = origins[:8] + rng.uniform(-3.0, 3.0, (8, 3))          # bodies right beside sensors 0..7
+    radii = rng.uniform(0.3, 2.5, n_bodies) + EXIT_MARGIN_M
+    max_range = rng.uniform(20.0, 120.0, n)
+    own = np.where(rng.uniform(size=n) < 0.9, np.arange(n), -1)                  # most sensors ride a body
+    dirs_world = np.concatenate([pattern @ R[k].T for k in range(n)]).astype(np.float32)
+    bins = direction_bins(pattern)
+    args = (origins, R, dirs_world, bins, max_range, centers, radii, own)
+    got = moving_body_candidates_binned(*args)
+    want = moving_body_candidates_binned_ref(*args)
+    assert got.dtype == want.dtype
+    assert_array_equal(got, want)
+    k = len(pattern)
+    assert 2 * k <= len(got) < 0.5 * len(dirs_world)                 # two sensors keep every ray, most are culled
+    # the rays in Open3D's layout (a strided view of the cast rows) give the same rays
+    rows = np.zeros((len(dirs_world), 6), dtype=np.float32)
+    rows[:, 3:] = dirs_world
+    assert_array_equal(moving_body_candidates_binned(origins, R, rows[:, 3:], bins, max_range, centers, radii, own), want)

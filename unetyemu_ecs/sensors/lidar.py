@@ -136,7 +136,7 @@ class LidarSystem(RaycastSensorSystem):
         rings, min_m, max_m = self._per_ray(due)
         # every sensor's points in one array, in sensor order (each cloud is a slice of it; room for every ray)
         counts = np.empty(len(due), dtype=np.intp)
-        room = np.empty(len(rings), dtype=POINT_DTYPE)
+        room = self.arrays.take(len(rings), POINT_DTYPE)       # reused once no cloud of it is held any more
         _write_points(hits.t, plan.dirs_sensor, hits.normal, cast, hits.cls, rings, plan.bounds, min_m, max_m,
                       self._reflectivity, room.view(np.float32).reshape(-1, 5), room.view(np.uint32).reshape(-1, 5),
                       counts)
@@ -164,6 +164,8 @@ def _write_points(t, dirs_sensor, normal, cast, cls, rings, bounds, min_m, max_m
     frame, intensity) and ``words`` (the same rows as uint32: the ring in the last word, its upper 2 bytes
     padding); ``counts[j]`` how many sensor j has. Intensity: the class's reflectivity times the cosine of
     incidence. A miss (inf) is never kept."""
+    d, normals, rows = dirs_sensor.reshape(-1), normal.reshape(-1), cast.reshape(-1)   # flat: cheaper indexing
+    out, out_words = columns.reshape(-1), words.reshape(-1)
     n = 0
     for j in range(bounds.shape[0] - 1):
         first, lo, hi = n, min_m[j], max_m[j]
@@ -171,12 +173,11 @@ def _write_points(t, dirs_sensor, normal, cast, cls, rings, bounds, min_m, max_m
             ti = t[i]
             if not (ti <= hi and ti >= lo):
                 continue
-            columns[n, 0] = dirs_sensor[i, 0] * ti
-            columns[n, 1] = dirs_sensor[i, 1] * ti
-            columns[n, 2] = dirs_sensor[i, 2] * ti
-            cos_incidence = normal[i, 0] * cast[i, 3] + normal[i, 1] * cast[i, 4] + normal[i, 2] * cast[i, 5]
-            columns[n, 3] = reflectivity[cls[i]] * abs(cos_incidence)
-            words[n, 4] = rings[i]
+            out[5 * n], out[5 * n + 1], out[5 * n + 2] = d[3 * i] * ti, d[3 * i + 1] * ti, d[3 * i + 2] * ti
+            cos_incidence = (normals[3 * i] * rows[6 * i + 3] + normals[3 * i + 1] * rows[6 * i + 4]
+                             + normals[3 * i + 2] * rows[6 * i + 5])
+            out[5 * n + 3] = reflectivity[cls[i]] * abs(cos_incidence)
+            out_words[5 * n + 4] = rings[i]
             n += 1
         counts[j] = n - first
 

@@ -131,44 +131,73 @@ def moving_body_candidates_binned(origins_m: np.ndarray, R_world_sensor: np.ndar
     origins_m (N, 3) and R_world_sensor (N, 3, 3) are the sensors' poses, ``dirs_world`` (N * K, 3) their
     rays in the world (sensor n's are rows n K .. (n + 1) K - 1), ``bins`` the pattern's
     :func:`direction_bins`, ``max_range_m`` (N,), ``exclude`` (N,) each sensor's own body (-1: none).
-    Returns indices into the N * K rays. A body's sphere (radius r at distance d) subtends the angle
+    Returns indices into the N * K rays, ascending. A body's sphere (radius r at distance d) subtends the angle
     asin(r / d); only the bins whose cone comes that close to it are tested ray by ray (the same exact
     test as :func:`moving_body_candidates`), so the cost follows the rays near bodies, not all rays.
     """
     n = len(origins_m)
     k_rays = len(dirs_world) // max(n, 1)
-    v = centers_m[None, :, :] - origins_m[:, None, :]                          # (N, B, 3)
-    dist = np.sqrt(np.einsum("nbi,nbi->nb", v, v))
-    near = dist - radii_m[None, :] <= np.asarray(max_range_m, dtype=float)[:, None]
-    own = np.asarray(exclude, dtype=np.intp)
-    mine = own >= 0
-    near[np.flatnonzero(mine), own[mine]] = False
-    sensor, body = np.nonzero(near)
-    if sensor.size == 0:
-        return np.empty(0, dtype=np.intp)
-    d, r = dist[sensor, body], radii_m[body]
-    inside = d <= r                                                            # every ray of that sensor
-    whole = np.unique(sensor[inside])
-    out = [(whole[:, None] * k_rays + np.arange(k_rays)[None, :]).reshape(-1)] if whole.size else []
-    keep = ~inside & ~np.isin(sensor, whole)
-    sensor, body, d, r = sensor[keep], body[keep], d[keep], r[keep]
-    if sensor.size:
-        vp = v[sensor, body]                                                   # (P, 3) world
-        u = np.einsum("pji,pj->pi", R_world_sensor[sensor], vp) / d[:, None]   # unit, sensor frame
-        reach = np.arcsin(r / d)
-        cos_bin = np.clip(u @ bins.axis.T, -1.0, 1.0)                         # (P, bins)
-        pair, cell = np.nonzero(np.arccos(cos_bin) <= reach[:, None] + bins.half_angle_rad[None, :])
-        if pair.size:
-            sizes = np.diff(bins.starts)[cell]
-            first = np.repeat(bins.starts[cell] - np.concatenate([[0], np.cumsum(sizes)[:-1]]), sizes)
-            ray = bins.order[first + np.arange(sizes.sum())] + np.repeat(sensor[pair] * k_rays, sizes)
-            p = np.repeat(pair, sizes)
-            along = np.einsum("mi,mi->m", dirs_world[ray], vp[p])
-            hit = along >= np.sqrt(d[p] ** 2 - r[p] ** 2)
-            out.append(ray[hit])
-    if not out:
-        return np.empty(0, dtype=np.intp)
-    return np.unique(np.concatenate(out)).astype(np.intp)
+    out = np.empty(n * k_rays, dtype=np.intp)
+    count = _binned_candidates(np.asarray(origins_m, dtype=float).reshape(-1, 3),
+                               np.asarray(R_world_sensor, dtype=float).reshape(-1, 3, 3), dirs_world,
+                               bins.order, bins.starts, bins.axis, bins.half_angle_rad,
+                               np.broadcast_to(np.asarray(max_range_m, dtype=float), (n,)),
+                               np.asarray(centers_m, dtype=float).reshape(-1, 3), np.asarray(radii_m, dtype=float),
+                               np.broadcast_to(np.asarray(exclude, dtype=np.intp), (n,)), k_rays,
+                               np.zeros(k_rays, dtype=np.bool_), out)
+    return out[:count].copy()
+
+
+@jit
+def _binned_candidates(origins, R, dirs_world, order, starts, axis, half_angle, max_range, centers, radii, exclude,
+                       k_rays, seen, out):
+    """:func:`moving_body_candidates_binned` as one pass over sensor-body pairs: for each body near sensor s
+    (not its own), the bins whose cone comes within the body's angular radius, and in them each ray whose line
+    passes within the body's sphere ahead of the sensor (``seen``, K, False on entry and on return); then the
+    sensor's candidates in ray order into ``out``. A sensor inside a body's sphere keeps every ray. Returns how
+    many were written."""
+    count = 0
+    for s in range(origins.shape[0]):
+        first = s * k_rays
+        whole, marked = False, False
+        for b in range(centers.shape[0]):
+            if b == exclude[s]:
+                continue
+            v0, v1, v2 = centers[b, 0] - origins[s, 0], centers[b, 1] - origins[s, 1], centers[b, 2] - origins[s, 2]
+            d = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+            r = radii[b]
+            if not d - r <= max_range[s]:
+                continue
+            if d <= r:
+                whole = True
+                break
+            u0 = (R[s, 0, 0] * v0 + R[s, 1, 0] * v1 + R[s, 2, 0] * v2) / d          # towards the body, sensor frame
+            u1 = (R[s, 0, 1] * v0 + R[s, 1, 1] * v1 + R[s, 2, 1] * v2) / d
+            u2 = (R[s, 0, 2] * v0 + R[s, 1, 2] * v1 + R[s, 2, 2] * v2) / d
+            reach = np.arcsin(r / d)
+            need = np.sqrt(d * d - r * r)                       # how far along the ray its closest approach must be
+            for c in range(starts.shape[0] - 1):
+                cos_axis = min(1.0, max(-1.0, u0 * axis[c, 0] + u1 * axis[c, 1] + u2 * axis[c, 2]))
+                if np.arccos(cos_axis) > reach + half_angle[c]:
+                    continue
+                for q in range(starts[c], starts[c + 1]):
+                    k = order[q]
+                    i = first + k
+                    if dirs_world[i, 0] * v0 + dirs_world[i, 1] * v1 + dirs_world[i, 2] * v2 >= need:
+                        seen[k] = True
+                        marked = True
+        if whole:
+            for k in range(k_rays):
+                out[count] = first + k
+                count += 1
+                seen[k] = False
+        elif marked:
+            for k in range(k_rays):
+                if seen[k]:
+                    out[count] = first + k
+                    count += 1
+                    seen[k] = False
+    return count
 
 
 def box_triangles(centers_m: np.ndarray, quats_xyzw: np.ndarray, half_extents_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -16,6 +16,7 @@ from ..control.compiled import jit
 from ..frames import R_from_quat_xyzw
 from ..world import StepContext
 from .base import MountedSensor, SensorSystemBase
+from .buffers import ArrayPool
 from .raycast import (EXIT_MARGIN_M, DirectionBins, RaycastWorld, direction_bins, exit_distance_m, import_open3d,
                       moving_body_candidates, moving_body_candidates_binned, ray_starts)
 
@@ -34,6 +35,7 @@ class RaycastSensorSystem(SensorSystemBase):
         self._body_half = np.empty((0, 3))
         self._body_radius = np.empty(0)
         self._plans: dict[tuple[int, ...], CastPlan] = {}
+        self.arrays = ArrayPool()           # the rays as cast, and what subclasses fill per tick
 
     def gather(self, ctx: StepContext) -> None:
         super().gather(ctx)
@@ -70,13 +72,13 @@ class RaycastSensorSystem(SensorSystemBase):
         """Cast every due sensor's rays in one batch.
 
         rays : per sensor, (directions (M, 3) in the sensor frame, own-hull exit distances (M,))
-        Returns the hits, the rays as cast (sum M, 6) float32: where each starts in the static scene and its
+        Returns the hits, the rays as cast (sum M, 6) float32 (where each starts in the static scene and its
         unit direction, world frame) and the :class:`CastPlan` of ``due`` (each sensor's slice of them, ...).
         """
         plan = self._plan(due, rays)
         pos, R = self.sensor_poses(ctx, plan)
         boxes = self.moving_boxes(ctx)
-        out = np.empty((len(plan.dirs_sensor), 6), dtype=np.float32)     # Open3D's rows: start point, direction
+        out = self.arrays.take((len(plan.dirs_sensor), 6), np.float32)     # Open3D's rows: start point, direction
         rays_to_world(plan.dirs_sensor, plan.start_static_m, plan.bounds, R, pos, out)
         if plan.bins is not None:                       # one pattern for all: binned culling
             dynamic = moving_body_candidates_binned(pos, R, out[:, 3:], plan.bins, plan.max_range_m, boxes[0],
@@ -97,16 +99,22 @@ class RaycastSensorSystem(SensorSystemBase):
 def rays_to_world(dirs_sensor, start_static_m, bounds, R_world_sensor, origins_m, out):
     """Every ray of N sensors in Open3D's layout, ``out`` (M, 6) float32: where it starts in the static scene
     (``origin + start_static * R d``) and its unit direction ``R d`` in the world; sensor j's rays (sensor frame,
-    ``dirs_sensor``) are rows ``bounds[j]`` to ``bounds[j + 1]``, its pose ``R_world_sensor[j]``, ``origins_m[j]``."""
+    ``dirs_sensor``) are rows ``bounds[j]`` to ``bounds[j + 1]``, its pose ``R_world_sensor[j]``, ``origins_m[j]``.
+    Computed in float32, the precision Open3D casts in (the pose rounded to float32 once per sensor)."""
+    d, rows = dirs_sensor.reshape(-1), out.reshape(-1)          # flat: no aliasing doubts, no 2-D index arithmetic
     for j in range(bounds.shape[0] - 1):
         R, o = R_world_sensor[j], origins_m[j]
+        r00, r01, r02 = np.float32(R[0, 0]), np.float32(R[0, 1]), np.float32(R[0, 2])
+        r10, r11, r12 = np.float32(R[1, 0]), np.float32(R[1, 1]), np.float32(R[1, 2])
+        r20, r21, r22 = np.float32(R[2, 0]), np.float32(R[2, 1]), np.float32(R[2, 2])
+        o0, o1, o2 = np.float32(o[0]), np.float32(o[1]), np.float32(o[2])
         for i in range(bounds[j], bounds[j + 1]):
-            d0, d1, d2 = np.float64(dirs_sensor[i, 0]), np.float64(dirs_sensor[i, 1]), np.float64(dirs_sensor[i, 2])
-            start = np.float64(start_static_m[i])
-            for c in range(3):
-                w = R[c, 0] * d0 + R[c, 1] * d1 + R[c, 2] * d2
-                out[i, 3 + c] = w
-                out[i, c] = o[c] + start * w
+            d0, d1, d2, start = d[3 * i], d[3 * i + 1], d[3 * i + 2], start_static_m[i]
+            w0 = r00 * d0 + r01 * d1 + r02 * d2
+            w1 = r10 * d0 + r11 * d1 + r12 * d2
+            w2 = r20 * d0 + r21 * d1 + r22 * d2
+            rows[6 * i], rows[6 * i + 1], rows[6 * i + 2] = o0 + start * w0, o1 + start * w1, o2 + start * w2
+            rows[6 * i + 3], rows[6 * i + 4], rows[6 * i + 5] = w0, w1, w2
 
 
 def per_sensor_set(cache: dict[tuple[int, ...], Any], due: list[MountedSensor], make: Callable[[], Any]) -> Any:
