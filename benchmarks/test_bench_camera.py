@@ -34,6 +34,8 @@ def test_raycast_camera_frame(benchmark, kind, width, height):
         ctx = sim._context()
 
         def frame():
+            sim.services.sensors.this_step.clear()          # as every step does
+            ctx.services.camera_casts.clear()               # a new frame: cast again (not the view shared this step)
             with sim.ecs.active():
                 system.measure(ctx, system.sensors, sim.sim_time_s)
 

@@ -31,6 +31,12 @@ def car(name: str, lidar: str = "{mount_xyz_m: [0.0, 0.0, 1.0]}", x: float = 0.0
             f"    pose: {{position_m: [{x}, {y}, 0.9], yaw_deg: {yaw_deg}}}\n{comps}")
 
 
+def landed_drone(lidar: str = "{}") -> str:
+    """Drone d1 (medium) standing at the origin with a LiDAR (``lidar``: its options)."""
+    return ("  - name: d1\n    type: quadrotor\n    preset: medium\n    pose: {position_m: [0.0, 0.0, 0.3]}\n"
+            f"    components: {{lidar: {lidar}}}\n")
+
+
 def xyz(msg) -> np.ndarray:
     p = read_points(msg)
     return np.c_[p["x"], p["y"], p["z"]].astype(np.float64)
@@ -88,8 +94,7 @@ def test_turning_the_sensor_by_yaw_90_rotates_the_cloud_by_exactly_minus_90():
 
 def test_a_moving_car_appears_in_the_scan_at_its_current_pose():
     # GIVEN a drone hovering at 2 m with a LiDAR, and a car driving past 8 m in front of it
-    drone = ("  - name: d1\n    type: quadrotor\n    preset: medium\n    pose: {position_m: [0.0, 0.0, 0.3]}\n"
-             "    components: {lidar: {}}\n")
+    drone = landed_drone()
     with Simulation(load_world_text(world(drone + car("c1", lidar="", x=8.0, y=-60.0, yaw_deg=90.0), room=False))) as sim:
         sim.set_target("d1", 0.0, 0.0, 2.0)
         sim.cmd_vel("c1", 10.0, 0.0)
@@ -114,8 +119,7 @@ def test_a_moving_car_appears_in_the_scan_at_its_current_pose():
 
 
 def test_the_drone_never_sees_itself_and_the_cloud_round_trips_through_cdr():
-    drone = ("  - name: d1\n    type: quadrotor\n    preset: medium\n    pose: {position_m: [0.0, 0.0, 0.3]}\n"
-             "    components: {lidar: {channels: 32, vertical_fov_deg: 90.0}}\n")
+    drone = landed_drone("{channels: 32, vertical_fov_deg: 90.0}")
     with Simulation(load_world_text(world(drone))) as sim:
         sim.set_target("d1", 0.0, 0.0, 3.0)
         sim.run(duration=5.0)
@@ -147,8 +151,7 @@ def test_a_lidar_cast_on_one_thread_sees_the_same_walls():
 
 def test_a_cloud_kept_from_an_earlier_scan_stays_as_it_was_while_later_scans_reuse_memory():
     # GIVEN a drone climbing in the room with a LiDAR, and a scan kept by its reader
-    drone = ("  - name: d1\n    type: quadrotor\n    preset: medium\n    pose: {position_m: [0.0, 0.0, 0.3]}\n"
-             "    components: {lidar: {}}\n")
+    drone = landed_drone()
     with Simulation(load_world_text(world(drone))) as sim:
         sim.set_target("d1", 0.0, 0.0, 8.0)
         sim.run(duration=1.0)
