@@ -44,9 +44,10 @@ class BagBridge:
     def __init__(self, directory: Path) -> None:
         from rosbags.rosbag2 import StoragePlugin, Writer
 
-        from ..sensors.messages import typestore
+        from ..sensors.messages import serialize, typestore
 
         self.directory = directory
+        self._serialize = serialize          # rosbags' CDR bytes (own writers for /tf, clouds, images)
         self._typestore = typestore()
         self._writer = Writer(directory, version=BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
         self._writer.open()
@@ -64,7 +65,7 @@ class BagBridge:
             conn = self._connections[topic] = self._writer.add_connection(
                 topic, msg.__msgtype__, typestore=self._typestore,
                 offered_qos_profiles=offered_qos(topic))
-        self._writer.write(conn, self.time_ns, bytes(self._typestore.serialize_cdr(msg, msg.__msgtype__)))
+        self._writer.write(conn, self.time_ns, self._serialize(msg))
         self.written[topic] = self.written.get(topic, 0) + 1
 
     def close(self) -> None:
