@@ -4,6 +4,7 @@ and the BLAS thread limit the simulation sets for itself."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
@@ -85,6 +86,22 @@ def test_the_stress_script_prints_one_row_per_case_with_rates_phases_and_memory(
     bad = subprocess.run([sys.executable, str(REPO_ROOT / "benchmarks" / "stress.py"), "flight-7"], cwd=REPO_ROOT,
                          capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2 and "unknown case(s) flight-7" in bad.stderr
+
+
+def test_the_stress_cases_run_as_pytest_benchmarks_and_print_the_scripts_rows():
+    env = {**os.environ, "STRESS_SECONDS": "0.5"}
+    res = subprocess.run([sys.executable, "-m", "pytest", "benchmarks/test_bench_stress.py", "-k", "flight-1]", "-s",
+                          "-q", "-p", "no:cacheprovider", "--benchmark-disable"],
+                         cwd=REPO_ROOT, capture_output=True, text=True, env=env, timeout=300)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    assert "1 passed, 18 deselected" in res.stdout
+    (row,) = [line.split() for line in res.stdout.splitlines() if line.startswith("flight-1 ")]
+    assert row[1] == "1" and float(row[2]) == 0.5 and float(row[3]) > 0 and float(row[-1]) > 50   # drones, sim s, rtf, MB
+    env["STRESS_SECONDS"] = "-3"
+    bad = subprocess.run([sys.executable, "-m", "pytest", "benchmarks/test_bench_stress.py", "-k", "flight-1]", "-q",
+                          "-p", "no:cacheprovider", "--benchmark-disable"],
+                         cwd=REPO_ROOT, capture_output=True, text=True, env=env, timeout=300)
+    assert bad.returncode != 0 and "STRESS_SECONDS must be in [0.1, 3600], got -3.0" in bad.stdout
 
 
 def test_the_side_by_side_script_measures_ours_and_names_where_the_peer_figures_come_from():
