@@ -18,7 +18,7 @@ import numpy as np
 
 def _free_refs_in_take() -> int:
     """What ``sys.getrefcount`` reads for a pooled array no one else holds, looked at as :meth:`ArrayPool.take`
-    looks at it (the pool's list, the loop variable, getrefcount's own argument: 3 on CPython 3.11-3.13).
+    looks at it (the pool's list, the loop variable, getrefcount's own argument: 3 on CPython 3.11).
     Measured rather than assumed: newer interpreters may borrow the loop variable's reference, and a count
     taken as "free" one too high would hand out an array a published message still reads."""
     arrays = [np.empty(1)]
