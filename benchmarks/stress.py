@@ -41,6 +41,7 @@ from bench_worlds import city_with_lidar_drones  # noqa: E402
 
 PHASES = ("COMMANDS", "MISSION", "GUIDANCE", "STABILIZE", "ACTUATE", "PHYSICS", "STATE", "PAYLOAD_ENERGY",
           "SENSORS", "OUTPUTS")
+SECONDS_MIN, SECONDS_MAX = 0.1, 3600.0          # simulated seconds a case may be measured for
 CASES = ([f"flight-{n}" for n in (1, 10, 100, 250, 1000)]
          + [f"lidar-{n}{ros}" for n in (10, 30, 60, 100) for ros in ("", "-ros2")]
          + [f"camera-{k}-{w}x{h}" for k in (1, 5) for w, h in ((320, 240), (640, 480))]
@@ -137,6 +138,17 @@ def run_case(case: str, seconds: float, rss_every_s: float = 0.0) -> dict:
             **({"rss_mb_at_sim_s": rss_samples} if rss_every_s > 0 else {})}
 
 
+def run_case_isolated(case: str, seconds: float, rss_every_s: float = 0.0) -> dict:
+    """Run one case in a fresh interpreter (so its peak RSS is its own); return its row. RuntimeError, with the
+    end of the case's stderr, if it failed."""
+    res = subprocess.run([sys.executable, __file__, "--in-process", case, "--seconds", str(seconds),
+                          "--rss-every", str(rss_every_s)],
+                         capture_output=True, text=True, cwd=REPO)
+    if res.returncode != 0:
+        raise RuntimeError(f"{case}: failed\n{res.stderr[-2000:]}")
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
 def format_row(row: dict) -> str:
     phases = " ".join(f"{row['phase_ms_per_step'].get(p, 0.0):7.3f}" for p in PHASES)
     return (f"{row['case']:<20} {row['drones']:>6} {row['sim_s']:>6.1f} {row['rtf_wall']:>8.2f} {row['rtf_cpu']:>8.2f} "
@@ -162,8 +174,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.list:
         print("\n".join(CASES))
         return 0
-    if not (math.isfinite(args.seconds) and 0.1 <= args.seconds <= 3600.0):
-        parser.error(f"--seconds must be in [0.1, 3600], got {args.seconds}")
+    if not (math.isfinite(args.seconds) and SECONDS_MIN <= args.seconds <= SECONDS_MAX):
+        parser.error(f"--seconds must be in [{SECONDS_MIN:g}, {SECONDS_MAX:g}], got {args.seconds}")
     if not (math.isfinite(args.rss_every) and 0.0 <= args.rss_every <= args.seconds):
         parser.error(f"--rss-every must be in [0, --seconds], got {args.rss_every}")
     if args.in_process:
@@ -176,14 +188,12 @@ def main(argv: list[str] | None = None) -> int:
         print(header(), flush=True)
     failed = 0
     for case in args.cases or CASES:
-        res = subprocess.run([sys.executable, __file__, "--in-process", case, "--seconds", str(args.seconds),
-                              "--rss-every", str(args.rss_every)],
-                             capture_output=True, text=True, cwd=REPO)
-        if res.returncode != 0:
-            print(f"{case}: failed\n{res.stderr[-2000:]}", file=sys.stderr)
+        try:
+            row = run_case_isolated(case, args.seconds, args.rss_every)
+        except RuntimeError as exc:
+            print(exc, file=sys.stderr)
             failed += 1
             continue
-        row = json.loads(res.stdout.strip().splitlines()[-1])
         print(json.dumps(row) if args.json else format_row(row), flush=True)
     return 1 if failed else 0
 
